@@ -1,0 +1,8 @@
+//! treemanip: learning how trees deform when a robot pushes them, after
+//! "Towards Robotic Tree Manipulation: Leveraging Graph Representations"
+//! (Kim, Lee, Kroemer, Kantor).
+//!
+//! Units are SI everywhere: metres, radians, N·m/rad for joint stiffness,
+//! N·m·s/rad for joint damping.
+
+pub mod tree;

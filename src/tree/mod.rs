@@ -1,0 +1,13 @@
+//! Trees: the validated model, the Space Colonization generator, the URDF
+//! format and an SVG drawing. Everything else in treemanip depends on this
+//! module and it depends on nothing else in the crate.
+
+pub mod model;
+pub mod render;
+pub mod sca;
+pub mod urdf;
+pub mod wood;
+
+pub use model::{Branch, MAX_NODES, MIN_NODES, Tree, TreeError};
+pub use sca::{ScaError, ScaParams, generate, tree_seed};
+pub use wood::Wood;
