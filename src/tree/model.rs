@@ -133,6 +133,9 @@ impl Tree {
                 });
             }
         }
+        // Structure first: a broken parent chain explains bad numbers
+        // derived from it (for example positions summed along it).
+        let depth = validate_topology(&parents)?;
         for (node, p) in positions.iter().enumerate() {
             if !p.iter().all(|c| c.is_finite()) {
                 return Err(TreeError::NonFinite {
@@ -141,7 +144,6 @@ impl Tree {
                 });
             }
         }
-        let depth = validate_topology(&parents)?;
         let mut branches = branches;
         branches[0] = None;
         for node in 1..n {

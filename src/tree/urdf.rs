@@ -48,7 +48,7 @@ const JOINT_VELOCITY_LIMIT: f64 = 100.0;
 
 #[derive(Debug, thiserror::Error)]
 pub enum UrdfError {
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}")]
     Io {
         path: String,
         source: std::io::Error,

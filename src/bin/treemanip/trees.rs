@@ -1,6 +1,7 @@
 //! `treemanip trees …`
 
 use std::collections::HashSet;
+use std::io::Write;
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
@@ -240,6 +241,7 @@ struct TreeJson {
 
 fn show(args: ShowArgs) -> anyhow::Result<()> {
     let tree = load(&args.file)?;
+    let mut out = std::io::stdout().lock();
     if args.json {
         let per_node = |f: fn(&tree::Branch) -> f64| -> Vec<Option<f64>> {
             tree.branches().iter().map(|b| b.as_ref().map(f)).collect()
@@ -252,19 +254,20 @@ fn show(args: ShowArgs) -> anyhow::Result<()> {
             stiffness: per_node(|b| b.stiffness),
             damping: per_node(|b| b.damping),
         };
-        println!("{}", serde_json::to_string_pretty(&json)?);
+        writeln!(out, "{}", serde_json::to_string_pretty(&json)?)?;
         return Ok(());
     }
     let n = tree.len();
     let leaves = (0..n).filter(|&j| tree.is_leaf(j)).count();
     let forks = (0..n).filter(|&j| tree.children(j).len() >= 2).count();
     let max_depth = (0..n).map(|j| tree.depth(j)).max().unwrap_or(0);
-    println!("{}", args.file.display());
-    println!(
+    writeln!(out, "{}", args.file.display())?;
+    writeln!(
+        out,
         "  nodes {n} (leaves {leaves}, forks {forks}), height {:.3} m, max depth {max_depth}, closest nodes {:.3} m apart",
         tree.height(),
         tree.min_node_spacing()
-    );
+    )?;
     let range = |f: fn(&tree::Branch) -> f64| {
         let values: Vec<f64> = tree.branches_iter().map(|(_, b)| f(b)).collect();
         (
@@ -275,19 +278,22 @@ fn show(args: ShowArgs) -> anyhow::Result<()> {
     let (r0, r1) = range(|b| b.radius);
     let (l0, l1) = range(|b| b.length);
     let (k0, k1) = range(|b| b.stiffness);
-    println!(
+    writeln!(
+        out,
         "  radius {:.4}–{:.4} m, length {:.3}–{:.3} m, K_s {:.3e}–{:.3e} N·m/rad",
         r0, r1, l0, l1, k0, k1
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "\n  {:>4} {:>6} {:>5} {:>9} {:>9} {:>9} {:>8} {:>8} {:>10} {:>10}",
         "node", "parent", "depth", "x (m)", "y (m)", "z (m)", "r (m)", "ℓ (m)", "K_s", "K_d"
-    );
+    )?;
     for j in 0..n {
         let p = tree.position(j);
         let parent = tree.parent(j).map_or("-".to_owned(), |p| p.to_string());
         match tree.branch(j) {
-            Some(b) => println!(
+            Some(b) => writeln!(
+                out,
                 "  {j:>4} {parent:>6} {:>5} {:>9.4} {:>9.4} {:>9.4} {:>8.4} {:>8.4} {:>10.3e} {:>10.3e}",
                 tree.depth(j),
                 p.x,
@@ -298,14 +304,15 @@ fn show(args: ShowArgs) -> anyhow::Result<()> {
                 b.stiffness,
                 b.damping
             ),
-            None => println!(
+            None => writeln!(
+                out,
                 "  {j:>4} {parent:>6} {:>5} {:>9.4} {:>9.4} {:>9.4}   (fixed root)",
                 tree.depth(j),
                 p.x,
                 p.y,
                 p.z
             ),
-        }
+        }?;
     }
     Ok(())
 }

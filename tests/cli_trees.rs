@@ -1,0 +1,195 @@
+//! `treemanip trees …` end to end, through the real binary.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+use treemanip::tree::urdf;
+
+fn treemanip(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_treemanip"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("treemanip-cli-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn generate(out: &Path, extra: &[&str]) -> Value {
+    let mut args = vec!["trees", "generate", "--out", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let result = treemanip(&args);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    serde_json::from_str(&std::fs::read_to_string(out.join("index.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn generate_writes_urdf_files_and_an_index() {
+    let out = temp_dir("gen");
+    let index = generate(
+        &out,
+        &["--nodes", "10..=12", "--per-size", "4", "--seed", "3"],
+    );
+    assert_eq!(index["base_seed"], 3);
+    let trees = index["trees"].as_array().unwrap();
+    assert_eq!(trees.len(), 12);
+    let mut keys_per_size = std::collections::HashMap::<u64, Vec<String>>::new();
+    for entry in trees {
+        let n = entry["n"].as_u64().unwrap();
+        let tree = urdf::read_file(&out.join(entry["file"].as_str().unwrap())).unwrap();
+        assert_eq!(tree.len() as u64, n);
+        assert!((tree.height() - entry["height"].as_f64().unwrap()).abs() < 1e-12);
+        // The recorded seed regenerates the very same file.
+        let again = treemanip::tree::generate(
+            n as usize,
+            entry["seed"].as_u64().unwrap(),
+            &treemanip::tree::ScaParams::default(),
+        )
+        .unwrap();
+        let name = format!("tree_N{n}_{:03}", entry["index"].as_u64().unwrap());
+        let written = std::fs::read_to_string(out.join(entry["file"].as_str().unwrap())).unwrap();
+        assert!(
+            urdf::to_urdf_string(&again, &name, &Default::default()) == written,
+            "seed of {} does not regenerate it",
+            entry["file"]
+        );
+        keys_per_size
+            .entry(n)
+            .or_default()
+            .push(tree.topology_key());
+    }
+    for (n, keys) in keys_per_size {
+        let unique: std::collections::HashSet<_> = keys.iter().collect();
+        assert_eq!(unique.len(), keys.len(), "N={n}: topologies repeat");
+    }
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn generate_is_deterministic() {
+    let (a, b) = (temp_dir("det-a"), temp_dir("det-b"));
+    let args = ["--nodes", "13,20", "--per-size", "3", "--seed", "11"];
+    let (ia, ib) = (generate(&a, &args), generate(&b, &args));
+    assert_eq!(ia, ib);
+    for entry in ia["trees"].as_array().unwrap() {
+        let file = entry["file"].as_str().unwrap();
+        assert_eq!(
+            std::fs::read(a.join(file)).unwrap(),
+            std::fs::read(b.join(file)).unwrap()
+        );
+    }
+    std::fs::remove_dir_all(&a).ok();
+    std::fs::remove_dir_all(&b).ok();
+}
+
+#[test]
+fn show_and_render_a_tree() {
+    let out = temp_dir("show");
+    let index = generate(&out, &["--nodes", "15", "--per-size", "1"]);
+    let file = out.join(index["trees"][0]["file"].as_str().unwrap());
+    let tree = urdf::read_file(&file).unwrap();
+
+    let shown = treemanip(&["trees", "show", file.to_str().unwrap()]);
+    assert!(shown.status.success());
+    let text = String::from_utf8(shown.stdout).unwrap();
+    assert!(text.contains("nodes 15"), "{text}");
+    assert!(text.contains("(fixed root)"));
+    // Path, two summary lines, a blank line, the header, one row per node.
+    assert_eq!(text.lines().count(), 5 + 15);
+
+    let json = treemanip(&["trees", "show", "--json", file.to_str().unwrap()]);
+    let value: Value = serde_json::from_slice(&json.stdout).unwrap();
+    assert_eq!(value["parents"][0], Value::Null);
+    assert_eq!(value["radius"][0], Value::Null);
+    assert_eq!(value["positions"].as_array().unwrap().len(), 15);
+    for j in 1..15 {
+        let b = tree.branch(j).unwrap();
+        assert_eq!(value["stiffness"][j].as_f64(), Some(b.stiffness));
+        assert_eq!(
+            value["parents"][j].as_u64(),
+            tree.parent(j).map(|p| p as u64)
+        );
+    }
+
+    let svg = out.join("tree.svg");
+    let rendered = treemanip(&[
+        "trees",
+        "render",
+        file.to_str().unwrap(),
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(
+        rendered.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rendered.stderr)
+    );
+    let doc = std::fs::read_to_string(&svg).unwrap();
+    assert!(doc.starts_with("<svg"));
+    // Two views, each with one line per branch plus the ground and scale bar.
+    assert_eq!(doc.matches("<line").count(), 2 * (14 + 2));
+    assert!(doc.contains("front (x–z)") && doc.contains("side (y–z)"));
+    assert!(doc.contains("N = 15"));
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn errors_are_clear_and_fail_the_command() {
+    let bad = treemanip(&[
+        "trees",
+        "generate",
+        "--out",
+        "/tmp/unused",
+        "--nodes",
+        "2..=5",
+    ]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("outside the generator's range"));
+
+    let missing = treemanip(&["trees", "show", "/definitely/not/here.urdf"]);
+    assert!(!missing.status.success());
+    assert!(
+        String::from_utf8_lossy(&missing.stderr).contains("cannot read /definitely/not/here.urdf")
+    );
+
+    let out = temp_dir("bad-urdf");
+    std::fs::create_dir_all(&out).unwrap();
+    let file = out.join("robot.urdf");
+    std::fs::write(&file, "<robot name=\"arm\"><link name=\"base\"/></robot>").unwrap();
+    let not_tree = treemanip(&[
+        "trees",
+        "render",
+        file.to_str().unwrap(),
+        "--out",
+        "/tmp/x.svg",
+    ]);
+    assert!(!not_tree.status.success());
+    assert!(String::from_utf8_lossy(&not_tree.stderr).contains("not a treemanip tree URDF"));
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn help_is_available_everywhere() {
+    for args in [
+        &["--help"][..],
+        &["trees", "--help"],
+        &["trees", "generate", "--help"],
+        &["trees", "show", "--help"],
+        &["trees", "render", "--help"],
+    ] {
+        let out = treemanip(args);
+        assert!(out.status.success(), "{args:?}");
+        assert!(
+            String::from_utf8_lossy(&out.stdout).contains("Usage"),
+            "{args:?}"
+        );
+    }
+}
