@@ -5,4 +5,5 @@
 //! Units are SI everywhere: metres, radians, N·m/rad for joint stiffness,
 //! N·m·s/rad for joint damping.
 
+pub mod api;
 pub mod tree;
