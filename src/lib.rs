@@ -6,4 +6,5 @@
 //! N·m·s/rad for joint damping.
 
 pub mod api;
+pub mod sim;
 pub mod tree;
