@@ -6,5 +6,7 @@
 //! N·m·s/rad for joint damping.
 
 pub mod api;
+pub mod dataset;
+pub mod seed;
 pub mod sim;
 pub mod tree;

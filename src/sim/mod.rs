@@ -120,6 +120,23 @@ pub enum SimError {
     Degenerate,
 }
 
+impl SimError {
+    /// A stable snake_case name, for counting discards by reason.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            SimError::NodeOutOfRange { .. } => "node_out_of_range",
+            SimError::RootContact => "root_contact",
+            SimError::NonFinitePush => "non_finite_push",
+            SimError::PushTooLong { .. } => "push_too_long",
+            SimError::LostBranch { .. } => "lost_branch",
+            SimError::OutOfReach { .. } => "out_of_reach",
+            SimError::OverRotated { .. } => "over_rotated",
+            SimError::NotConverged { .. } => "not_converged",
+            SimError::Degenerate => "degenerate",
+        }
+    }
+}
+
 /// Solves one push.
 pub fn simulate(tree: &Tree, push: &Push, config: &SimConfig) -> Result<PushOutcome, SimError> {
     let n = tree.len();

@@ -2,6 +2,7 @@
 //! format and an SVG drawing. Everything else in treemanip depends on this
 //! module and it depends on nothing else in the crate.
 
+pub mod collection;
 pub mod model;
 pub mod render;
 pub mod sca;

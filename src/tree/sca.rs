@@ -170,18 +170,7 @@ impl ScaParams {
 /// `base_seed` (SplitMix64 over the three numbers), so any single tree can be
 /// regenerated without the others.
 pub fn tree_seed(base_seed: u64, n: usize, index: u64) -> u64 {
-    let mut x = base_seed;
-    for v in [n as u64, index] {
-        x = splitmix64(x ^ splitmix64(v));
-    }
-    x
-}
-
-fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    crate::seed::derive_seed(base_seed, &[n as u64, index])
 }
 
 /// Grows a tree of exactly `n` nodes from `seed`.

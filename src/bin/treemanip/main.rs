@@ -1,6 +1,9 @@
 //! `treemanip`: the offline tool. Generates trees, (later) simulates pushes,
 //! collects data, trains, exports and evaluates models.
 
+mod dataset;
+mod progress;
+mod sim;
 mod trees;
 
 use clap::{Parser, Subcommand};
@@ -17,11 +20,19 @@ enum Command {
     /// Generate, inspect and draw trees (Space Colonization Algorithm, URDF).
     #[command(subcommand)]
     Trees(trees::TreesCommand),
+    /// Simulate pushes on a tree (quasi-static spring-joint model).
+    #[command(subcommand)]
+    Sim(sim::SimCommand),
+    /// Collect and inspect push-episode datasets (.npz).
+    #[command(subcommand)]
+    Dataset(dataset::DatasetCommand),
 }
 
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().command {
         Command::Trees(cmd) => trees::run(cmd),
+        Command::Sim(cmd) => sim::run(cmd),
+        Command::Dataset(cmd) => dataset::run(cmd),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,15 +1,14 @@
 //! `treemanip trees …`
 
-use std::collections::HashSet;
 use std::io::Write;
 use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
+use treemanip::tree::collection::{TreeOrigin, tree_set};
 use treemanip::tree::{self, ScaParams, Tree, render, urdf};
 
 #[derive(Subcommand)]
@@ -68,9 +67,9 @@ pub struct RenderArgs {
 }
 
 #[derive(Clone, Debug)]
-pub struct NodeSizes(Vec<usize>);
+pub struct NodeSizes(pub Vec<usize>);
 
-fn parse_sizes(s: &str) -> Result<NodeSizes, String> {
+pub fn parse_sizes(s: &str) -> Result<NodeSizes, String> {
     let parse = |t: &str| {
         t.trim()
             .parse::<usize>()
@@ -108,19 +107,10 @@ struct Index {
 #[derive(Serialize)]
 struct IndexEntry {
     file: String,
-    n: usize,
-    /// Position of the tree among the kept trees of its size.
-    index: usize,
-    /// The seed passed to the generator (`tree_seed(base_seed, n, candidate)`).
-    seed: u64,
-    /// How many seeds of this size were tried before this one.
-    candidate: u64,
+    #[serde(flatten)]
+    origin: TreeOrigin,
     height: f64,
 }
-
-/// Most candidate seeds tried per kept tree before giving up on unique
-/// topologies (the smallest sizes need ~5 on average).
-const CANDIDATES_PER_TREE: u64 = 100;
 
 fn generate(args: GenerateArgs) -> anyhow::Result<()> {
     let params = ScaParams::default();
@@ -136,12 +126,7 @@ fn generate(args: GenerateArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let total = (args.nodes.0.len() * args.per_size) as u64;
-    let bar = ProgressBar::new(total).with_style(
-        ProgressStyle::with_template(
-            "{bar:40} {pos}/{len} trees [{elapsed_precise} < {eta}] {msg}",
-        )
-        .expect("valid template"),
-    );
+    let bar = crate::progress::bar(total, "trees");
     let start = std::time::Instant::now();
     // Sizes run in parallel; within a size, candidates run in order so the
     // uniqueness filter keeps the same trees every time.
@@ -149,7 +134,40 @@ fn generate(args: GenerateArgs) -> anyhow::Result<()> {
         .nodes
         .0
         .par_iter()
-        .map(|&n| generate_size(n, &args, &params, &bar))
+        .map(|&n| {
+            let dir = format!("N{n}");
+            std::fs::create_dir_all(args.out.join(&dir))?;
+            let mut entries = Vec::with_capacity(args.per_size);
+            let mut write_error = None;
+            tree_set(
+                n,
+                args.per_size,
+                args.seed,
+                &params,
+                !args.allow_duplicate_topologies,
+                |origin, tree| {
+                    let file = format!("{dir}/tree_{:03}.urdf", origin.index);
+                    let name = format!("tree_N{n}_{:03}", origin.index);
+                    if let Err(e) =
+                        urdf::write_file(tree, &name, &params.wood, &args.out.join(&file))
+                    {
+                        write_error.get_or_insert(
+                            anyhow::Error::new(e).context(format!("cannot write {file}")),
+                        );
+                    }
+                    entries.push(IndexEntry {
+                        file,
+                        origin: *origin,
+                        height: tree.height(),
+                    });
+                    bar.inc(1);
+                },
+            )?;
+            match write_error {
+                Some(e) => Err(e),
+                None => Ok(entries),
+            }
+        })
         .collect();
     bar.finish_and_clear();
     let mut entries = Vec::new();
@@ -178,51 +196,6 @@ fn generate(args: GenerateArgs) -> anyhow::Result<()> {
         index_path.display()
     );
     Ok(())
-}
-
-fn generate_size(
-    n: usize,
-    args: &GenerateArgs,
-    params: &ScaParams,
-    bar: &ProgressBar,
-) -> anyhow::Result<Vec<IndexEntry>> {
-    let dir = format!("N{n}");
-    std::fs::create_dir_all(args.out.join(&dir))?;
-    let mut seen = HashSet::new();
-    let mut entries = Vec::with_capacity(args.per_size);
-    let budget = args.per_size as u64 * CANDIDATES_PER_TREE;
-    let mut candidate = 0u64;
-    while entries.len() < args.per_size {
-        if candidate == budget {
-            bail!(
-                "only {} distinct topologies of {n} nodes in {budget} seeds; \
-                 ask for fewer trees or pass --allow-duplicate-topologies",
-                entries.len()
-            );
-        }
-        let seed = tree::tree_seed(args.seed, n, candidate);
-        candidate += 1;
-        let tree = tree::generate(n, seed, params)
-            .with_context(|| format!("generating a {n}-node tree from seed {seed}"))?;
-        if !args.allow_duplicate_topologies && !seen.insert(tree.topology_key()) {
-            continue;
-        }
-        let index = entries.len();
-        let file = format!("{dir}/tree_{index:03}.urdf");
-        let name = format!("tree_N{n}_{index:03}");
-        urdf::write_file(&tree, &name, &params.wood, &args.out.join(&file))
-            .with_context(|| format!("cannot write {file}"))?;
-        entries.push(IndexEntry {
-            file,
-            n,
-            index,
-            seed,
-            candidate: candidate - 1,
-            height: tree.height(),
-        });
-        bar.inc(1);
-    }
-    Ok(entries)
 }
 
 fn load(path: &Path) -> anyhow::Result<Tree> {

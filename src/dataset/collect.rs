@@ -1,0 +1,223 @@
+//! Collecting episodes: for each split and size, a set of distinct trees and
+//! pushes drawn as in the paper, simulated in parallel. Every episode has
+//! its own random stream (derived from the base seed, split, size and
+//! episode index), so the files do not depend on thread scheduling.
+//!
+//! A push the simulator rejects (the gripper loses the branch, the node
+//! cannot be carried that far, no convergence) is discarded and counted,
+//! and the episode draws another push on the same tree, as the original
+//! data collection discarded such episodes.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::{Episode, SizeData, Split};
+use crate::seed::derive_seed;
+use crate::sim::sampling::PushDistribution;
+use crate::sim::{ContactModel, SimConfig, simulate};
+use crate::tree::ScaParams;
+use crate::tree::collection::{CollectionError, tree_set};
+
+/// How a dataset is made; recorded next to it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CollectConfig {
+    pub seed: u64,
+    /// Trees per split and size (the paper: 100 unique topologies).
+    pub trees_per_size: usize,
+    /// Skip generated trees whose topology repeats an earlier one.
+    pub distinct_topologies: bool,
+    pub tree_params: ScaParams,
+    pub pushes: PushDistribution,
+    pub contact: ContactModel,
+    /// Pushes drawn for one episode before giving up on it.
+    pub max_attempts: usize,
+}
+
+impl Default for CollectConfig {
+    fn default() -> Self {
+        Self {
+            seed: 7,
+            trees_per_size: 100,
+            distinct_topologies: true,
+            tree_params: ScaParams::default(),
+            pushes: PushDistribution::default(),
+            contact: ContactModel::Slot,
+            max_attempts: 1000,
+        }
+    }
+}
+
+/// What collecting one file took and found.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SizeStats {
+    pub split: Split,
+    pub n: usize,
+    pub kept: usize,
+    /// Discarded pushes by reason (`lost_branch`, `out_of_reach`, …).
+    pub discarded: BTreeMap<String, usize>,
+    /// Pushes where the slot slid to a fork and held the node there.
+    pub caught_at_fork: usize,
+    /// No-Action baseline: mean over episodes of the largest node
+    /// displacement max_j |p′_j − p_j| (m) — the paper's e_N when the tree is
+    /// left still.
+    pub no_action_error: f64,
+    /// Largest node displacement in any episode (m).
+    pub max_displacement: f64,
+    pub mean_iterations: f64,
+    pub max_kkt_residual: f64,
+    pub seconds: f64,
+}
+
+impl SizeStats {
+    pub fn discarded_total(&self) -> usize {
+        self.discarded.values().sum()
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CollectError {
+    #[error(transparent)]
+    Trees(#[from] CollectionError),
+    #[error(
+        "episode {episode} of {split}_N{n}: {attempts} pushes in a row were discarded (last: {last})"
+    )]
+    TooManyDiscards {
+        split: &'static str,
+        n: usize,
+        episode: usize,
+        attempts: usize,
+        last: String,
+    },
+}
+
+struct EpisodeResult {
+    episode: Episode,
+    discarded: Vec<&'static str>,
+    iterations: usize,
+    kkt: f64,
+    displacement: f64,
+}
+
+/// Collects `episodes` episodes on `config.trees_per_size` trees of `n`
+/// nodes. `progress` is called once per finished episode.
+pub fn collect_size(
+    split: Split,
+    n: usize,
+    episodes: usize,
+    config: &CollectConfig,
+    progress: &(dyn Fn() + Sync),
+) -> Result<(SizeData, SizeStats), CollectError> {
+    let start = Instant::now();
+    let tree_base = derive_seed(config.seed, &[split.seed_part()]);
+    let trees = tree_set(
+        n,
+        config.trees_per_size,
+        tree_base,
+        &config.tree_params,
+        config.distinct_topologies,
+        |_, _| {},
+    )?;
+    let sim = SimConfig {
+        contact: config.contact,
+        ..SimConfig::default()
+    };
+    let results: Vec<Result<EpisodeResult, CollectError>> = (0..episodes)
+        .into_par_iter()
+        .map(|e| {
+            let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(
+                config.seed,
+                &[split.seed_part(), n as u64, e as u64],
+            ));
+            // Episodes cycle through the trees so each gets the same share.
+            let tree_index = e % trees.len();
+            let tree = &trees[tree_index].1;
+            let mut discarded = Vec::new();
+            loop {
+                let push = config.pushes.sample(tree, &mut rng);
+                match simulate(tree, &push, &sim) {
+                    Ok(outcome) => {
+                        progress();
+                        let displacement = outcome
+                            .final_positions
+                            .iter()
+                            .zip(tree.positions())
+                            .map(|(a, b)| (a - b).norm())
+                            .fold(0.0, f64::max);
+                        return Ok(EpisodeResult {
+                            episode: Episode {
+                                tree: tree_index,
+                                push,
+                                final_positions: outcome.final_positions,
+                                hold: outcome.report.hold,
+                            },
+                            discarded,
+                            iterations: outcome.report.iterations,
+                            kkt: outcome.report.kkt_residual,
+                            displacement,
+                        });
+                    }
+                    Err(err) => {
+                        discarded.push(err.kind());
+                        if discarded.len() >= config.max_attempts {
+                            return Err(CollectError::TooManyDiscards {
+                                split: split.name(),
+                                n,
+                                episode: e,
+                                attempts: discarded.len(),
+                                last: err.to_string(),
+                            });
+                        }
+                    }
+                }
+            }
+        })
+        .collect();
+
+    let mut stats = SizeStats {
+        split,
+        n,
+        kept: 0,
+        discarded: BTreeMap::new(),
+        caught_at_fork: 0,
+        no_action_error: 0.0,
+        max_displacement: 0.0,
+        mean_iterations: 0.0,
+        max_kkt_residual: 0.0,
+        seconds: 0.0,
+    };
+    let mut kept = Vec::with_capacity(episodes);
+    for result in results {
+        let r = result?;
+        for kind in r.discarded {
+            *stats.discarded.entry(kind.to_owned()).or_default() += 1;
+        }
+        if r.episode.hold == crate::sim::Hold::AtNode && config.contact == ContactModel::Slot {
+            stats.caught_at_fork += 1;
+        }
+        stats.no_action_error += r.displacement;
+        stats.max_displacement = stats.max_displacement.max(r.displacement);
+        stats.mean_iterations += r.iterations as f64;
+        stats.max_kkt_residual = stats.max_kkt_residual.max(r.kkt);
+        kept.push(r.episode);
+    }
+    stats.kept = kept.len();
+    if stats.kept > 0 {
+        stats.no_action_error /= stats.kept as f64;
+        stats.mean_iterations /= stats.kept as f64;
+    }
+    stats.seconds = start.elapsed().as_secs_f64();
+    Ok((
+        SizeData {
+            split,
+            n,
+            trees,
+            episodes: kept,
+        },
+        stats,
+    ))
+}

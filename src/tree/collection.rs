@@ -1,0 +1,78 @@
+//! Sets of generated trees: N-node trees with distinct topologies, each
+//! reproducible from its recorded seed. Used by `treemanip trees generate`
+//! and by the dataset collector, so both pick the very same trees.
+
+use std::collections::HashSet;
+
+use serde::{Deserialize, Serialize};
+
+use super::model::Tree;
+use super::sca::{ScaError, ScaParams, generate, tree_seed};
+
+/// Most candidate seeds tried per kept tree before giving up on distinct
+/// topologies (the smallest size, N = 10, needs about 5 on average).
+pub const CANDIDATES_PER_TREE: u64 = 100;
+
+/// Where one tree of a set came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TreeOrigin {
+    pub n: usize,
+    /// Position among the kept trees of this size.
+    pub index: usize,
+    /// The seed passed to the generator: `tree_seed(base_seed, n, candidate)`.
+    pub seed: u64,
+    /// How many candidates of this size were tried before this one.
+    pub candidate: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CollectionError {
+    #[error(
+        "only {found} distinct topologies of {n} nodes in {tried} seeds; ask for fewer trees or allow repeated topologies"
+    )]
+    TooFewTopologies { n: usize, found: usize, tried: u64 },
+    #[error(transparent)]
+    Generator(#[from] ScaError),
+}
+
+/// `count` trees of `n` nodes from `base_seed`. With `distinct`, a candidate
+/// whose topology repeats an earlier one is skipped. Calls `on_tree` as each
+/// tree is kept (for progress bars).
+pub fn tree_set(
+    n: usize,
+    count: usize,
+    base_seed: u64,
+    params: &ScaParams,
+    distinct: bool,
+    mut on_tree: impl FnMut(&TreeOrigin, &Tree),
+) -> Result<Vec<(TreeOrigin, Tree)>, CollectionError> {
+    let mut seen = HashSet::new();
+    let mut kept = Vec::with_capacity(count);
+    let budget = count as u64 * CANDIDATES_PER_TREE;
+    for candidate in 0..budget {
+        if kept.len() == count {
+            break;
+        }
+        let seed = tree_seed(base_seed, n, candidate);
+        let tree = generate(n, seed, params)?;
+        if distinct && !seen.insert(tree.topology_key()) {
+            continue;
+        }
+        let origin = TreeOrigin {
+            n,
+            index: kept.len(),
+            seed,
+            candidate,
+        };
+        on_tree(&origin, &tree);
+        kept.push((origin, tree));
+    }
+    if kept.len() < count {
+        return Err(CollectionError::TooFewTopologies {
+            n,
+            found: kept.len(),
+            tried: budget,
+        });
+    }
+    Ok(kept)
+}
