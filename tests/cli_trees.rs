@@ -1,23 +1,12 @@
 //! `treemanip trees …` end to end, through the real binary.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
+mod common;
+
+use common::{temp_dir, treemanip};
 use serde_json::Value;
 use treemanip::tree::urdf;
-
-fn treemanip(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_treemanip"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn temp_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("treemanip-cli-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
 
 fn generate(out: &Path, extra: &[&str]) -> Value {
     let mut args = vec!["trees", "generate", "--out", out.to_str().unwrap()];

@@ -1,20 +1,15 @@
 //! Dataset collection: deterministic files, a lossless reader, numpy
 //! readability, and the CLI around them.
 
-use std::path::PathBuf;
 use std::process::Command;
 
+mod common;
+
+use common::{temp_dir, treemanip};
 use serde_json::Value;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
 use treemanip::dataset::{Split, read_size_file, write_size_file};
 use treemanip::sim::{Push, SimConfig, simulate};
-
-fn temp_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("treemanip-ds-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn small_config() -> CollectConfig {
     CollectConfig {
@@ -107,13 +102,6 @@ fn damaged_files_are_clear_errors() {
         .to_string();
     assert!(err.contains("missing.npz"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
-}
-
-fn treemanip(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_treemanip"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 #[test]
