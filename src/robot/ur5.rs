@@ -1,0 +1,569 @@
+//! The UR5 arm with the ⊔ gripper: our own URDF, written from Universal
+//! Robots' published DH parameters, and the kinematic chain read back from
+//! it with urdf-rs (so the URDF file is what forward kinematics runs on).
+//!
+//! Frames follow the ROS-Industrial description: `base_link` is the mount;
+//! `base_link_inertia` (the DH base frame 0) is it turned by π about z; each
+//! joint's origin is T_x(a_{i−1}) R_x(α_{i−1}) T_z(d_i), so `wrist_3_link`
+//! is the DH frame 6, the tool flange, with z pointing out of the flange.
+//!
+//! Gripper (on the flange, all in the flange frame, metres): a palm box
+//! 0.04 (x) × 0.06 (y) × 0.01 (z) against the flange, and two fingers
+//! 0.04 × 0.02 × 0.05 at y = ±0.02 in front of it, leaving a slot 2 cm wide
+//! and 5 cm deep along x. The **tool frame** is at the centre of the palm's
+//! front face: tool z is the push direction (out of the palm), tool x runs
+//! along the slot (the held branch lies along it), tool y across the slot.
+
+use std::collections::HashMap;
+use std::f64::consts::{FRAC_PI_2, PI};
+
+use nalgebra::{Isometry3, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use urdf_rs::{
+    Axis, Collision, Geometry, Inertial, Joint, JointLimit, JointType, Link, LinkName, Pose, Robot,
+    Vec3,
+};
+
+/// Universal Robots' UR5 DH parameters (m, rad).
+pub const DH_D: [f64; 6] = [0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823];
+pub const DH_A: [f64; 6] = [0.0, -0.425, -0.39225, 0.0, 0.0, 0.0];
+pub const DH_ALPHA: [f64; 6] = [FRAC_PI_2, 0.0, 0.0, FRAC_PI_2, -FRAC_PI_2, 0.0];
+
+pub const JOINT_NAMES: [&str; 6] = [
+    "shoulder_pan_joint",
+    "shoulder_lift_joint",
+    "elbow_joint",
+    "wrist_1_joint",
+    "wrist_2_joint",
+    "wrist_3_joint",
+];
+
+/// Link carried by each joint.
+pub const LINK_NAMES: [&str; 6] = [
+    "shoulder_link",
+    "upper_arm_link",
+    "forearm_link",
+    "wrist_1_link",
+    "wrist_2_link",
+    "wrist_3_link",
+];
+
+/// Joint position limits (rad): ±2π, the elbow ±π (it would hit itself).
+pub const JOINT_LIMITS: [(f64, f64); 6] = [
+    (-2.0 * PI, 2.0 * PI),
+    (-2.0 * PI, 2.0 * PI),
+    (-PI, PI),
+    (-2.0 * PI, 2.0 * PI),
+    (-2.0 * PI, 2.0 * PI),
+    (-2.0 * PI, 2.0 * PI),
+];
+
+/// Joint speed limits (rad/s): the UR5's 180°/s.
+pub const MAX_VELOCITY: [f64; 6] = [PI; 6];
+
+/// Joint acceleration limits used for trajectories (rad/s²); a conservative
+/// value for moving near a tree.
+pub const MAX_ACCELERATION: [f64; 6] = [3.0; 6];
+
+/// The paper's home configuration (rad).
+pub const HOME: [f64; 6] = [
+    FRAC_PI_2,
+    -2.0 * PI / 3.0,
+    4.0 * PI / 5.0,
+    -PI / 7.0,
+    FRAC_PI_2,
+    0.0,
+];
+
+/// The paper's mount: `base_link` at (−0.5, 0, 0.1) m from the tree root,
+/// identity orientation.
+pub fn default_base() -> Isometry3<f64> {
+    Isometry3::translation(-0.5, 0.0, 0.1)
+}
+
+/// Palm thickness (m): the tool frame is this far out of the flange.
+pub const PALM_THICKNESS: f64 = 0.01;
+/// Finger length beyond the palm (m): the slot depth.
+pub const FINGER_LENGTH: f64 = 0.05;
+/// Width of the slot between the fingers (m).
+pub const SLOT_WIDTH: f64 = 0.02;
+/// Finger thickness across the slot (m).
+pub const FINGER_THICKNESS: f64 = 0.02;
+/// Extent of palm and fingers along the slot (m).
+pub const GRIPPER_DEPTH: f64 = 0.04;
+
+/// A capsule around (part of) a link, in the link's frame (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CapsuleSpec {
+    pub link: &'static str,
+    pub a: [f64; 3],
+    pub b: [f64; 3],
+    pub radius: f64,
+}
+
+/// One capsule per arm link, enclosing the ROS-Industrial UR5 collision
+/// meshes. Measured by `scripts/measure-ur5-meshes.py` (tight capsule around
+/// each mesh's convex hull, placed in our link frames), radii rounded up by
+/// at least 1 mm; `tests/robot_model.rs` checks every hull vertex is inside.
+pub const ARM_CAPSULES: [CapsuleSpec; 7] = [
+    CapsuleSpec {
+        link: "base_link_inertia",
+        a: [0.0, -0.0014, 0.0092],
+        b: [-0.0006, 0.0362, 0.0087],
+        radius: 0.0755,
+    },
+    CapsuleSpec {
+        link: "shoulder_link",
+        a: [0.0001, 0.0040, 0.0033],
+        b: [0.0013, -0.0201, -0.0137],
+        radius: 0.0890,
+    },
+    CapsuleSpec {
+        link: "upper_arm_link",
+        a: [0.0127, -0.0007, 0.1320],
+        b: [-0.4260, 0.0006, 0.1309],
+        radius: 0.0855,
+    },
+    CapsuleSpec {
+        link: "forearm_link",
+        a: [-0.0035, -0.0006, 0.0476],
+        b: [-0.3989, 0.0001, 0.0088],
+        radius: 0.0675,
+    },
+    CapsuleSpec {
+        link: "wrist_1_link",
+        a: [0.0018, -0.0431, -0.0137],
+        b: [-0.0011, 0.0221, -0.0085],
+        radius: 0.0530,
+    },
+    CapsuleSpec {
+        link: "wrist_2_link",
+        a: [0.0013, 0.0430, -0.0143],
+        b: [-0.0007, -0.0202, -0.0085],
+        radius: 0.0530,
+    },
+    CapsuleSpec {
+        link: "wrist_3_link",
+        a: [-0.0001, -0.0033, -0.0208],
+        b: [0.0001, 0.0033, -0.0205],
+        radius: 0.0415,
+    },
+];
+
+/// A box of the gripper, in the flange frame: centre and full size (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoxSpec {
+    pub link: &'static str,
+    pub centre: [f64; 3],
+    pub size: [f64; 3],
+}
+
+pub const GRIPPER_BOXES: [BoxSpec; 3] = [
+    BoxSpec {
+        link: "gripper_palm",
+        centre: [0.0, 0.0, PALM_THICKNESS / 2.0],
+        size: [
+            GRIPPER_DEPTH,
+            SLOT_WIDTH + 2.0 * FINGER_THICKNESS,
+            PALM_THICKNESS,
+        ],
+    },
+    BoxSpec {
+        link: "gripper_finger_left",
+        centre: [
+            0.0,
+            (SLOT_WIDTH + FINGER_THICKNESS) / 2.0,
+            PALM_THICKNESS + FINGER_LENGTH / 2.0,
+        ],
+        size: [GRIPPER_DEPTH, FINGER_THICKNESS, FINGER_LENGTH],
+    },
+    BoxSpec {
+        link: "gripper_finger_right",
+        centre: [
+            0.0,
+            -(SLOT_WIDTH + FINGER_THICKNESS) / 2.0,
+            PALM_THICKNESS + FINGER_LENGTH / 2.0,
+        ],
+        size: [GRIPPER_DEPTH, FINGER_THICKNESS, FINGER_LENGTH],
+    },
+];
+
+/// The transform of joint i's origin in its parent link:
+/// T_x(a_{i−1}) R_x(α_{i−1}) T_z(d_i), with a_{−1} = α_{−1} = 0.
+pub fn dh_joint_origin(i: usize) -> Isometry3<f64> {
+    let (a, alpha) = if i == 0 {
+        (0.0, 0.0)
+    } else {
+        (DH_A[i - 1], DH_ALPHA[i - 1])
+    };
+    Isometry3::from_parts(
+        Translation3::new(a, 0.0, 0.0),
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), alpha),
+    ) * Isometry3::translation(0.0, 0.0, DH_D[i])
+}
+
+fn pose_of(iso: &Isometry3<f64>) -> Pose {
+    let (r, p, y) = iso.rotation.euler_angles();
+    let t = iso.translation.vector;
+    Pose {
+        xyz: Vec3([t.x, t.y, t.z]),
+        rpy: Vec3([r, p, y]),
+    }
+}
+
+fn link(name: &str, collision: Vec<Collision>) -> Link {
+    Link {
+        name: name.to_owned(),
+        inertial: Inertial::default(),
+        visual: Vec::new(),
+        collision,
+    }
+}
+
+fn joint(
+    name: &str,
+    kind: JointType,
+    parent: &str,
+    child: &str,
+    origin: Isometry3<f64>,
+    limit: JointLimit,
+) -> Joint {
+    Joint {
+        name: name.to_owned(),
+        joint_type: kind,
+        origin: pose_of(&origin),
+        parent: LinkName {
+            link: parent.to_owned(),
+        },
+        child: LinkName {
+            link: child.to_owned(),
+        },
+        axis: Axis {
+            xyz: Vec3([0.0, 0.0, 1.0]),
+        },
+        limit,
+        calibration: None,
+        dynamics: None,
+        mimic: None,
+        safety_controller: None,
+    }
+}
+
+fn capsule_collision(spec: &CapsuleSpec) -> Collision {
+    let a = Vector3::from(spec.a);
+    let b = Vector3::from(spec.b);
+    let axis = b - a;
+    let rotation = Rotation3::rotation_between(&Vector3::z(), &axis.normalize())
+        .unwrap_or_else(Rotation3::identity);
+    let origin = Isometry3::from_parts(
+        Translation3::from((a + b) / 2.0),
+        UnitQuaternion::from(rotation),
+    );
+    Collision {
+        name: None,
+        origin: pose_of(&origin),
+        geometry: Geometry::Capsule {
+            radius: spec.radius,
+            length: axis.norm(),
+        },
+    }
+}
+
+/// Our UR5 + ⊔ gripper URDF (what `assets/ur5_gripper.urdf` holds).
+pub fn urdf_string() -> String {
+    let mut links = vec![link("base_link", Vec::new())];
+    let capsules = |name: &str| {
+        ARM_CAPSULES
+            .iter()
+            .filter(|c| c.link == name)
+            .map(capsule_collision)
+            .collect::<Vec<_>>()
+    };
+    links.push(link("base_link_inertia", capsules("base_link_inertia")));
+    let mut joints = vec![joint(
+        "base_link-base_link_inertia",
+        JointType::Fixed,
+        "base_link",
+        "base_link_inertia",
+        Isometry3::rotation(Vector3::z() * PI),
+        JointLimit::default(),
+    )];
+    let mut parent = "base_link_inertia";
+    for i in 0..6 {
+        links.push(link(LINK_NAMES[i], capsules(LINK_NAMES[i])));
+        let (lower, upper) = JOINT_LIMITS[i];
+        let limit = JointLimit {
+            lower,
+            upper,
+            effort: if i < 3 { 150.0 } else { 28.0 },
+            velocity: MAX_VELOCITY[i],
+            ..JointLimit::default()
+        };
+        joints.push(joint(
+            JOINT_NAMES[i],
+            JointType::Revolute,
+            parent,
+            LINK_NAMES[i],
+            dh_joint_origin(i),
+            limit,
+        ));
+        parent = LINK_NAMES[i];
+    }
+    for spec in &GRIPPER_BOXES {
+        let collision = Collision {
+            name: None,
+            origin: Pose::default(),
+            geometry: Geometry::Box {
+                size: Vec3(spec.size),
+            },
+        };
+        links.push(link(spec.link, vec![collision]));
+        joints.push(joint(
+            &format!("wrist_3-{}", spec.link),
+            JointType::Fixed,
+            "wrist_3_link",
+            spec.link,
+            Isometry3::translation(spec.centre[0], spec.centre[1], spec.centre[2]),
+            JointLimit::default(),
+        ));
+    }
+    links.push(link("tool", Vec::new()));
+    joints.push(joint(
+        "wrist_3-tool",
+        JointType::Fixed,
+        "wrist_3_link",
+        "tool",
+        Isometry3::translation(0.0, 0.0, PALM_THICKNESS),
+        JointLimit::default(),
+    ));
+    let robot = Robot {
+        name: "ur5_u_gripper".to_owned(),
+        version: None,
+        links,
+        joints,
+        materials: Vec::new(),
+    };
+    let body = urdf_rs::write_to_string(&robot).expect("serialising plain structs cannot fail");
+    format!(
+        "<?xml version=\"1.0\"?>\n<!-- treemanip UR5 with the U-shaped pushing gripper, from Universal Robots' DH parameters. Generated by treemanip::robot::ur5::urdf_string(); collision capsules enclose the ROS-Industrial UR5 meshes. Units: m, rad. -->\n{body}\n"
+    )
+}
+
+/// The committed URDF, embedded so the binary needs no files.
+pub const URDF: &str = include_str!("../../assets/ur5_gripper.urdf");
+
+/// A collision shape attached to a link, in the link's frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LinkShape {
+    Capsule {
+        a: Vector3<f64>,
+        b: Vector3<f64>,
+        radius: f64,
+    },
+    Box {
+        centre: Isometry3<f64>,
+        half_extents: Vector3<f64>,
+    },
+}
+
+#[derive(Debug, Clone)]
+struct ChainLink {
+    name: String,
+    parent: Option<usize>,
+    /// Pose of the joint frame in the parent link.
+    origin: Isometry3<f64>,
+    /// Index into the configuration and joint axis, for revolute joints.
+    joint: Option<(usize, Unit<Vector3<f64>>)>,
+    shapes: Vec<LinkShape>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum RobotModelError {
+    #[error("not a valid URDF: {0}")]
+    Parse(String),
+    #[error("robot URDF: {0}")]
+    Layout(String),
+}
+
+/// The arm's kinematic tree and collision shapes, as read from a URDF.
+#[derive(Debug, Clone)]
+pub struct Ur5 {
+    links: Vec<ChainLink>,
+    index: HashMap<String, usize>,
+    /// World pose of `base_link`.
+    pub base: Isometry3<f64>,
+}
+
+impl Default for Ur5 {
+    /// The embedded model at the paper's mount.
+    fn default() -> Self {
+        Self::from_urdf_str(URDF, default_base()).expect("the embedded URDF is valid")
+    }
+}
+
+impl Ur5 {
+    pub fn from_urdf_str(text: &str, base: Isometry3<f64>) -> Result<Self, RobotModelError> {
+        let robot =
+            urdf_rs::read_from_string(text).map_err(|e| RobotModelError::Parse(e.to_string()))?;
+        let by_child: HashMap<&str, &Joint> = robot
+            .joints
+            .iter()
+            .map(|j| (j.child.link.as_str(), j))
+            .collect();
+        let mut links: Vec<ChainLink> = Vec::new();
+        let mut index = HashMap::new();
+        // Parents before children: repeatedly add links whose parent is known.
+        let mut pending: Vec<&Link> = robot.links.iter().collect();
+        while !pending.is_empty() {
+            let before = pending.len();
+            pending.retain(|l| {
+                let (parent, origin, joint) = match by_child.get(l.name.as_str()) {
+                    None => (None, Isometry3::identity(), None),
+                    Some(j) => {
+                        let Some(&p) = index.get(j.parent.link.as_str()) else {
+                            return true;
+                        };
+                        let o = &j.origin;
+                        let origin = Isometry3::from_parts(
+                            Translation3::new(o.xyz[0], o.xyz[1], o.xyz[2]),
+                            UnitQuaternion::from_euler_angles(o.rpy[0], o.rpy[1], o.rpy[2]),
+                        );
+                        let joint = JOINT_NAMES.iter().position(|n| *n == j.name).map(|q| {
+                            (
+                                q,
+                                Unit::new_normalize(Vector3::new(
+                                    j.axis.xyz[0],
+                                    j.axis.xyz[1],
+                                    j.axis.xyz[2],
+                                )),
+                            )
+                        });
+                        (Some(p), origin, joint)
+                    }
+                };
+                let shapes = l.collision.iter().filter_map(shape_of).collect();
+                index.insert(l.name.clone(), links.len());
+                links.push(ChainLink {
+                    name: l.name.clone(),
+                    parent,
+                    origin,
+                    joint,
+                    shapes,
+                });
+                false
+            });
+            if pending.len() == before {
+                return Err(RobotModelError::Layout(format!(
+                    "links {:?} do not connect to the root",
+                    pending.iter().map(|l| &l.name).collect::<Vec<_>>()
+                )));
+            }
+        }
+        for (q, name) in JOINT_NAMES.iter().enumerate() {
+            if !links.iter().any(|l| l.joint.is_some_and(|(i, _)| i == q)) {
+                return Err(RobotModelError::Layout(format!(
+                    "joint `{name}` is missing"
+                )));
+            }
+        }
+        for name in ["base_link", "tool", "base_link_inertia"] {
+            if !index.contains_key(name) {
+                return Err(RobotModelError::Layout(format!("link `{name}` is missing")));
+            }
+        }
+        Ok(Self { links, index, base })
+    }
+
+    pub fn with_base(mut self, base: Isometry3<f64>) -> Self {
+        self.base = base;
+        self
+    }
+
+    /// World pose of every link at configuration `q`, in the model's link
+    /// order (see [`Ur5::link_names`]).
+    pub fn link_poses(&self, q: &[f64; 6]) -> Vec<Isometry3<f64>> {
+        let mut poses: Vec<Isometry3<f64>> = Vec::with_capacity(self.links.len());
+        for l in &self.links {
+            let parent = l.parent.map_or(self.base, |p| poses[p]);
+            let mut pose = parent * l.origin;
+            if let Some((i, axis)) = &l.joint {
+                pose *= UnitQuaternion::from_axis_angle(axis, q[*i]);
+            }
+            poses.push(pose);
+        }
+        poses
+    }
+
+    pub fn link_names(&self) -> impl Iterator<Item = &str> {
+        self.links.iter().map(|l| l.name.as_str())
+    }
+
+    pub fn link_index(&self, name: &str) -> Option<usize> {
+        self.index.get(name).copied()
+    }
+
+    /// Collision shapes of each link, in link order.
+    pub fn link_shapes(&self) -> impl Iterator<Item = (&str, &[LinkShape])> {
+        self.links
+            .iter()
+            .map(|l| (l.name.as_str(), l.shapes.as_slice()))
+    }
+
+    /// Parent link of each link (`None` for the root), in link order.
+    pub fn link_parent(&self, link: usize) -> Option<usize> {
+        self.links[link].parent
+    }
+
+    pub fn tool_pose(&self, q: &[f64; 6]) -> Isometry3<f64> {
+        self.link_poses(q)[self.index["tool"]]
+    }
+
+    /// World pose of the DH base frame 0 (`base_link_inertia`).
+    pub fn dh_base(&self) -> Isometry3<f64> {
+        let i = self.index["base_link_inertia"];
+        self.base * self.links[i].origin
+    }
+
+    /// Every joint configuration that puts the tool at `tool` (world frame),
+    /// within the joint limits, each at the 2π-equivalent nearest to
+    /// `reference`, sorted by distance to it (largest joint difference).
+    pub fn inverse_kinematics(&self, tool: &Isometry3<f64>, reference: &[f64; 6]) -> Vec<[f64; 6]> {
+        let flange = self.dh_base().inverse() * tool * self.tool_in_flange().inverse();
+        let mut solutions: Vec<[f64; 6]> = super::ik::solve(&flange.to_homogeneous(), reference)
+            .iter()
+            .filter_map(|q| super::ik::nearest_within_limits(q, reference))
+            .collect();
+        let distance = |q: &[f64; 6]| {
+            q.iter()
+                .zip(reference)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max)
+        };
+        solutions.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
+        solutions
+    }
+
+    /// The tool frame in the flange (DH frame 6) frame.
+    pub fn tool_in_flange(&self) -> Isometry3<f64> {
+        self.links[self.index["tool"]].origin
+    }
+}
+
+fn shape_of(c: &Collision) -> Option<LinkShape> {
+    let o = &c.origin;
+    let origin = Isometry3::from_parts(
+        Translation3::new(o.xyz[0], o.xyz[1], o.xyz[2]),
+        UnitQuaternion::from_euler_angles(o.rpy[0], o.rpy[1], o.rpy[2]),
+    );
+    match c.geometry {
+        Geometry::Capsule { radius, length } => Some(LinkShape::Capsule {
+            a: (origin * Point3::new(0.0, 0.0, -length / 2.0)).coords,
+            b: (origin * Point3::new(0.0, 0.0, length / 2.0)).coords,
+            radius,
+        }),
+        Geometry::Box { size } => Some(LinkShape::Box {
+            centre: origin,
+            half_extents: Vector3::new(size[0], size[1], size[2]) / 2.0,
+        }),
+        _ => None,
+    }
+}
