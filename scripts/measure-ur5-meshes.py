@@ -5,13 +5,17 @@ Reads the binary STL collision meshes of the ROS-Industrial UR5 description
 (../shared/reference/ur5/collision/*.stl, for reference only), places them
 in our link frames (the same DH-derived frames as that description, using
 its <collision><origin> transforms), and writes the vertices of each mesh's
-convex hull to tests/data/ur5_mesh_hulls.json. The Rust test
-`capsules_enclose_the_reference_meshes` checks our capsules against them;
-a capsule (convex) encloses a mesh exactly when it encloses its hull.
+unique vertices and triangles to tests/data/ur5_mesh_triangles.json. The
+Rust test `capsules_enclose_the_reference_meshes` checks that every triangle
+has all three corners inside one of our capsules; a capsule is convex, so
+it then contains the whole triangle and the capsules cover the mesh surface.
 
-It also prints a tight single capsule per link (axis by PCA, centred on the
-minimax radial offset), from which the constants in src/robot/ur5.rs were
-taken (rounded up).
+It also fits one to three capsules per link: triangles are split into
+slices by their centroid along the link's main axis, each slice gets the
+tightest capsule around all corners of its triangles (axis by PCA, centred
+on the minimax radial offset), and the split with the least total capsule
+volume wins. The constants in src/robot/ur5.rs are
+these, radii rounded up by 1 mm.
 
 Needs numpy and scipy. Usage: python3 scripts/measure-ur5-meshes.py [REF_DIR]
 """
@@ -69,6 +73,36 @@ def tight_capsule(points):
     return a, b, radius
 
 
+def volume(capsules):
+    return sum(np.pi * r * r * np.linalg.norm(b - a) + 4.0 / 3.0 * np.pi * r**3 for a, b, r in capsules)
+
+
+def best_split(points, triangles):
+    """One, two or three capsules over triangle slices, least volume."""
+    centre = points.mean(axis=0)
+    axis = np.linalg.svd(points - centre)[2][0]
+    t = (points[triangles].mean(axis=1) - centre) @ axis
+
+    def fit(masks):
+        parts = [np.unique(triangles[m].ravel()) for m in masks]
+        if min(len(p) for p in parts) < 4:
+            return None
+        return [tight_capsule(points[p]) for p in parts]
+
+    best = [tight_capsule(points)]
+    cuts = np.linspace(t.min(), t.max(), 22)[1:-1]
+    for c in cuts:
+        candidate = fit([t <= c, t > c])
+        if candidate and volume(candidate) < volume(best) * 0.97:
+            best = candidate
+    for i, c1 in enumerate(cuts):
+        for c2 in cuts[i + 1:]:
+            candidate = fit([t <= c1, (t > c1) & (t <= c2), t > c2])
+            if candidate and volume(candidate) < volume(best) * 0.97:
+                best = candidate
+    return best
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     ref = sys.argv[1] if len(sys.argv) > 1 else os.path.join(here, "../../shared/reference/ur5")
@@ -77,18 +111,22 @@ def main():
         vertices = read_stl(os.path.join(ref, "collision", stl))
         rot = Rotation.from_euler("xyz", rpy)  # URDF rpy: fixed axes x, y, z
         placed = rot.apply(vertices) + np.array(xyz)
-        hull = placed[ConvexHull(placed).vertices]
-        hulls[link] = [[round(float(c), 7) for c in v] for v in hull]
-        a, b, r = tight_capsule(hull)
-        print(f"{link:18} {len(vertices):6} vertices, hull {len(hull):4}: "
-              f"a = [{a[0]:.4f}, {a[1]:.4f}, {a[2]:.4f}], b = [{b[0]:.4f}, {b[1]:.4f}, {b[2]:.4f}], "
-              f"r = {r:.4f}")
-    out = os.path.join(here, "../tests/data/ur5_mesh_hulls.json")
+        unique, inverse = np.unique(np.round(placed, 7), axis=0, return_inverse=True)
+        triangles = inverse.reshape(-1, 3)
+        triangles = triangles[(triangles[:, 0] != triangles[:, 1]) & (triangles[:, 1] != triangles[:, 2])
+                              & (triangles[:, 0] != triangles[:, 2])]
+        hulls[link] = {"vertices": [[float(c) for c in v] for v in unique],
+                       "triangles": [[int(i) for i in tri] for tri in triangles]}
+        capsules = best_split(unique, triangles)
+        print(f"{link:18} {len(unique):5} vertices, {len(triangles)} triangles:")
+        for a, b, r in capsules:
+            print(f"    a: [{a[0]:.4f}, {a[1]:.4f}, {a[2]:.4f}], b: [{b[0]:.4f}, {b[1]:.4f}, {b[2]:.4f}], radius: {r + 0.001:.4f}")
+    out = os.path.join(here, "../tests/data/ur5_mesh_triangles.json")
     with open(out, "w") as f:
         json.dump({"source": "ROS-Industrial universal_robot ur5 collision meshes (BSD), "
-                             "convex hulls in treemanip's UR5 link frames; "
+                             "vertices (m, in treemanip's UR5 link frames) and triangles; "
                              "scripts/measure-ur5-meshes.py",
-                   "links": hulls}, f, indent=0)
+                   "links": hulls}, f, separators=(',', ':'))
     print("wrote", os.path.normpath(out))
 
 

@@ -1,6 +1,7 @@
 //! The robot side: the UR5 with its ⊔ gripper, inverse kinematics, collision
 //! checking against the tree, RRT* and the paper's Algorithm 1.
 
+pub mod collision;
 pub mod ik;
 pub mod ur5;
 

@@ -100,52 +100,84 @@ pub struct CapsuleSpec {
     pub radius: f64,
 }
 
-/// One capsule per arm link, enclosing the ROS-Industrial UR5 collision
-/// meshes. Measured by `scripts/measure-ur5-meshes.py` (tight capsule around
-/// each mesh's convex hull, placed in our link frames), radii rounded up by
-/// at least 1 mm; `tests/robot_model.rs` checks every hull vertex is inside.
-pub const ARM_CAPSULES: [CapsuleSpec; 7] = [
+/// Capsules around the arm links (one to three per link: the joint housings
+/// and the tube between them), enclosing the ROS-Industrial UR5 collision
+/// meshes. Fitted by `scripts/measure-ur5-meshes.py` (triangles sliced along
+/// the link axis, tightest capsule per slice, least total volume), radii
+/// rounded up by 1 mm; `tests/robot_model.rs` checks that every mesh
+/// triangle lies inside one of its link's capsules.
+pub const ARM_CAPSULES: [CapsuleSpec; 12] = [
     CapsuleSpec {
         link: "base_link_inertia",
-        a: [0.0, -0.0014, 0.0092],
-        b: [-0.0006, 0.0362, 0.0087],
-        radius: 0.0755,
+        a: [-0.0013, 0.0000, 0.0085],
+        b: [0.0021, 0.0000, 0.0085],
+        radius: 0.0750,
+    },
+    CapsuleSpec {
+        link: "base_link_inertia",
+        a: [0.0001, 0.1100, 0.0085],
+        b: [-0.0001, 0.0726, 0.0084],
+        radius: 0.0064,
     },
     CapsuleSpec {
         link: "shoulder_link",
-        a: [0.0001, 0.0040, 0.0033],
-        b: [0.0013, -0.0201, -0.0137],
-        radius: 0.0890,
+        a: [-0.0003, -0.0189, 0.0261],
+        b: [0.0008, -0.0168, -0.0449],
+        radius: 0.0791,
     },
     CapsuleSpec {
         link: "upper_arm_link",
-        a: [0.0127, -0.0007, 0.1320],
-        b: [-0.4260, 0.0006, 0.1309],
-        radius: 0.0855,
+        a: [-0.4166, -0.0017, 0.1152],
+        b: [-0.4058, 0.0017, 0.1530],
+        radius: 0.0815,
+    },
+    CapsuleSpec {
+        link: "upper_arm_link",
+        a: [-0.3546, 0.0003, 0.1359],
+        b: [-0.1111, -0.0003, 0.1354],
+        radius: 0.0597,
+    },
+    CapsuleSpec {
+        link: "upper_arm_link",
+        a: [-0.0192, 0.0002, 0.1230],
+        b: [0.0013, 0.0007, 0.1394],
+        radius: 0.0907,
     },
     CapsuleSpec {
         link: "forearm_link",
-        a: [-0.0035, -0.0006, 0.0476],
-        b: [-0.3989, 0.0001, 0.0088],
-        radius: 0.0675,
+        a: [-0.3873, 0.0005, 0.0023],
+        b: [-0.3781, -0.0012, 0.0546],
+        radius: 0.0543,
+    },
+    CapsuleSpec {
+        link: "forearm_link",
+        a: [-0.3467, -0.0006, 0.0175],
+        b: [-0.0743, 0.0008, 0.0161],
+        radius: 0.0398,
+    },
+    CapsuleSpec {
+        link: "forearm_link",
+        a: [-0.0569, -0.0018, 0.0379],
+        b: [0.0026, -0.0004, 0.0479],
+        radius: 0.0638,
     },
     CapsuleSpec {
         link: "wrist_1_link",
-        a: [0.0018, -0.0431, -0.0137],
-        b: [-0.0011, 0.0221, -0.0085],
-        radius: 0.0530,
+        a: [0.0003, -0.0436, -0.0138],
+        b: [-0.0003, 0.0225, -0.0087],
+        radius: 0.0524,
     },
     CapsuleSpec {
         link: "wrist_2_link",
-        a: [0.0013, 0.0430, -0.0143],
-        b: [-0.0007, -0.0202, -0.0085],
-        radius: 0.0530,
+        a: [0.0008, 0.0418, -0.0145],
+        b: [-0.0005, -0.0184, -0.0077],
+        radius: 0.0531,
     },
     CapsuleSpec {
         link: "wrist_3_link",
-        a: [-0.0001, -0.0033, -0.0208],
-        b: [0.0001, 0.0033, -0.0205],
-        radius: 0.0415,
+        a: [0.0000, 0.0014, -0.0204],
+        b: [0.0000, -0.0034, -0.0209],
+        radius: 0.0409,
     },
 ];
 
