@@ -10,7 +10,7 @@ fn model() -> CollisionModel {
 }
 
 /// A configuration reaching forward over the ground, arm clear of itself.
-const REACH: [f64; 6] = [0.0, -1.2, 1.4, -1.7, -1.5708, 0.0];
+const REACH: [f64; 6] = [0.0, -1.2, 1.4, -1.7, -std::f64::consts::FRAC_PI_2, 0.0];
 
 #[test]
 fn zero_and_home_are_free_and_disabled_pairs_are_needed_for_that() {
