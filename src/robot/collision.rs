@@ -259,7 +259,7 @@ impl CollisionModel {
             .collect()
     }
 
-    fn world_shapes(&self, q: &[f64; 6]) -> Vec<(WorldShape, Aabb)> {
+    fn world_shapes(&self, q: &[f64; 6], margin: f64) -> Vec<(WorldShape, Aabb)> {
         let poses = self.robot.link_poses(q);
         self.shapes
             .iter()
@@ -269,15 +269,17 @@ impl CollisionModel {
                     LinkShape::Capsule { a, b, radius } => {
                         let (wa, wb) =
                             ((p * Point3::from(*a)).coords, (p * Point3::from(*b)).coords);
+                        let r = radius + margin;
                         (
-                            WorldShape::Capsule(Capsule::new(vec3(&wa), vec3(&wb), *radius)),
-                            Aabb::of_capsule(&wa, &wb, *radius),
+                            WorldShape::Capsule(Capsule::new(vec3(&wa), vec3(&wb), r)),
+                            Aabb::of_capsule(&wa, &wb, r),
                         )
                     }
                     LinkShape::Box {
                         centre,
                         half_extents,
                     } => {
+                        let half_extents = &half_extents.add_scalar(margin);
                         let world = p * centre;
                         let rot = world.rotation.to_rotation_matrix();
                         let extent = rot.matrix().abs() * half_extents;
@@ -297,7 +299,20 @@ impl CollisionModel {
 
     /// The first collision of configuration `q`, or `None` when it is free.
     pub fn check(&self, q: &[f64; 6], tree: &TreeObstacles, allowed: &Allowed) -> Option<Hit> {
-        let world = self.world_shapes(q);
+        self.check_with_margin(q, tree, allowed, 0.0)
+    }
+
+    /// As [`Self::check`], with every robot shape grown by `margin` (m): a
+    /// configuration free with margin δ/2 stays free while no robot point
+    /// moves more than δ/2, which makes discrete edge checks conservative.
+    pub fn check_with_margin(
+        &self,
+        q: &[f64; 6],
+        tree: &TreeObstacles,
+        allowed: &Allowed,
+        margin: f64,
+    ) -> Option<Hit> {
+        let world = self.world_shapes(q, margin);
         let name = |i: usize| self.names[self.shapes[i].link].clone();
         for (i, (_, aabb)) in world.iter().enumerate() {
             if !self.shapes[i].base && aabb.min.z < GROUND_Z {

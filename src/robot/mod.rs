@@ -3,6 +3,9 @@
 
 pub mod collision;
 pub mod ik;
+pub mod rrt;
+pub mod scene;
+pub mod trajectory;
 pub mod ur5;
 
 pub use ur5::Ur5;

@@ -1,0 +1,316 @@
+//! RRT* in joint space (Karaman & Frazzoli 2011), with several goal
+//! configurations at once, then shortcut smoothing.
+//!
+//! - Samples uniformly inside a box around the start and the goals (each
+//!   joint's range widened by `sampling_margin`, within the joint limits),
+//!   or (with probability `goal_bias`) one of the goals. Sampling all of
+//!   ±2π on six joints wastes nearly every sample on wrapped-around arm
+//!   poses far from both ends.
+//! - Steers at most `max_step` (rad, Euclidean in joint space) from the
+//!   nearest node.
+//! - Chooses the cheapest collision-free parent among the nodes within
+//!   r_n = min(γ (ln n / n)^{1/6}, `max_step`), then rewires those
+//!   neighbours through the new node when that is cheaper. Cost is joint-
+//!   space path length, so the best cost never increases with iterations.
+//! - Stops at the iteration or time budget, or `refine_iterations` after
+//!   the first solution.
+//!
+//! The validity of configurations and edges is the caller's
+//! [`MotionValidator`]; [`super::scene::PlanningScene`] is the one used for
+//! the arm. The random stream is ChaCha8 from `seed`, so a plan with the
+//! same inputs and seed (and no time budget hit) is reproduced exactly.
+
+use std::time::{Duration, Instant};
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use super::ur5::JOINT_LIMITS;
+
+pub type Config = [f64; 6];
+
+/// Decides which configurations and straight joint-space edges are free.
+pub trait MotionValidator {
+    fn config_valid(&self, q: &Config) -> bool;
+    /// The straight edge from `a` (known valid) to `b` is free.
+    fn edge_valid(&self, a: &Config, b: &Config) -> bool;
+}
+
+#[derive(Debug, Clone)]
+pub struct RrtStarOptions {
+    pub max_iterations: usize,
+    pub time_budget: Option<Duration>,
+    pub goal_bias: f64,
+    /// Largest extension per iteration (rad, Euclidean).
+    pub max_step: f64,
+    /// γ of the shrinking neighbour radius (rad).
+    pub gamma: f64,
+    /// Iterations spent improving after the first solution.
+    pub refine_iterations: usize,
+    /// How far beyond the start and goals each joint is sampled (rad).
+    pub sampling_margin: f64,
+    pub seed: u64,
+}
+
+impl Default for RrtStarOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 5000,
+            time_budget: Some(Duration::from_millis(500)),
+            goal_bias: 0.1,
+            max_step: 0.6,
+            gamma: 6.0,
+            refine_iterations: 150,
+            sampling_margin: 1.5,
+            seed: 1,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RrtStats {
+    pub iterations: usize,
+    pub nodes: usize,
+    /// Iteration at which the first solution appeared.
+    pub first_solution: Option<usize>,
+    /// (iteration, best cost) each time the best cost improved.
+    pub cost_history: Vec<(usize, f64)>,
+    pub elapsed_ms: f64,
+}
+
+#[derive(Debug, Clone)]
+pub struct RrtPath {
+    /// Start … goal, each edge collision-free.
+    pub waypoints: Vec<Config>,
+    /// Which of the goals was reached.
+    pub goal: usize,
+    pub cost: f64,
+    pub stats: RrtStats,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RrtError {
+    #[error("the start configuration is in collision")]
+    StartInvalid,
+    #[error("no goal configuration is collision-free")]
+    NoValidGoal,
+    #[error("no path found within the budget ({iterations} iterations, {elapsed_ms:.1} ms)")]
+    NoPath { iterations: usize, elapsed_ms: f64 },
+}
+
+pub fn distance(a: &Config, b: &Config) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
+}
+
+fn steer(from: &Config, to: &Config, max_step: f64) -> Config {
+    let d = distance(from, to);
+    if d <= max_step {
+        return *to;
+    }
+    let f = max_step / d;
+    std::array::from_fn(|i| from[i] + (to[i] - from[i]) * f)
+}
+
+struct Node {
+    q: Config,
+    parent: Option<usize>,
+    cost: f64,
+    children: Vec<usize>,
+}
+
+/// Plans from `start` to any of `goals`.
+pub fn rrt_star(
+    start: &Config,
+    goals: &[Config],
+    validator: &dyn MotionValidator,
+    options: &RrtStarOptions,
+) -> Result<RrtPath, RrtError> {
+    let clock = Instant::now();
+    if !validator.config_valid(start) {
+        return Err(RrtError::StartInvalid);
+    }
+    let goals: Vec<(usize, Config)> = goals
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|(_, g)| validator.config_valid(g))
+        .collect();
+    if goals.is_empty() {
+        return Err(RrtError::NoValidGoal);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    let bounds: [(f64, f64); 6] = std::array::from_fn(|i| {
+        let values = goals
+            .iter()
+            .map(|g| g.1[i])
+            .chain(std::iter::once(start[i]));
+        let lo = values.clone().fold(f64::INFINITY, f64::min) - options.sampling_margin;
+        let hi = values.fold(f64::NEG_INFINITY, f64::max) + options.sampling_margin;
+        (lo.max(JOINT_LIMITS[i].0), hi.min(JOINT_LIMITS[i].1))
+    });
+    let mut nodes = vec![Node {
+        q: *start,
+        parent: None,
+        cost: 0.0,
+        children: Vec::new(),
+    }];
+    // (node, index into `goals`): a free edge from the node to that goal.
+    let mut goal_links: Vec<(usize, usize)> = Vec::new();
+    let mut stats = RrtStats {
+        iterations: 0,
+        nodes: 1,
+        first_solution: None,
+        cost_history: Vec::new(),
+        elapsed_ms: 0.0,
+    };
+    let best = |nodes: &[Node], links: &[(usize, usize)]| {
+        links
+            .iter()
+            .map(|&(n, g)| (nodes[n].cost + distance(&nodes[n].q, &goals[g].1), n, g))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+    };
+    // A direct edge is the best possible path: try it first.
+    for (g, (_, goal)) in goals.iter().enumerate() {
+        if validator.edge_valid(start, goal) {
+            goal_links.push((0, g));
+        }
+    }
+    if let Some((cost, _, _)) = best(&nodes, &goal_links) {
+        stats.first_solution = Some(0);
+        stats.cost_history.push((0, cost));
+    }
+
+    while stats.first_solution.is_none()
+        || stats.iterations < stats.first_solution.unwrap_or(0) + options.refine_iterations
+    {
+        if stats.iterations >= options.max_iterations
+            || options.time_budget.is_some_and(|b| clock.elapsed() >= b)
+        {
+            break;
+        }
+        stats.iterations += 1;
+        let sample: Config = if rng.random::<f64>() < options.goal_bias {
+            goals[rng.random_range(0..goals.len())].1
+        } else {
+            std::array::from_fn(|i| rng.random_range(bounds[i].0..=bounds[i].1))
+        };
+        let nearest = (0..nodes.len())
+            .min_by(|&a, &b| {
+                distance(&nodes[a].q, &sample).total_cmp(&distance(&nodes[b].q, &sample))
+            })
+            .expect("the tree has its root");
+        let new_q = steer(&nodes[nearest].q, &sample, options.max_step);
+        if !validator.config_valid(&new_q) {
+            continue;
+        }
+        let n = nodes.len() as f64 + 1.0;
+        let radius = (options.gamma * (n.ln() / n).powf(1.0 / 6.0)).min(options.max_step);
+        let mut near: Vec<(usize, f64)> = (0..nodes.len())
+            .map(|i| (i, distance(&nodes[i].q, &new_q)))
+            .filter(|&(i, d)| d <= radius || i == nearest)
+            .collect();
+        // Cheapest parent first; the first free edge wins.
+        near.sort_by(|a, b| (nodes[a.0].cost + a.1).total_cmp(&(nodes[b.0].cost + b.1)));
+        let Some(&(parent, d)) = near
+            .iter()
+            .find(|(i, _)| validator.edge_valid(&nodes[*i].q, &new_q))
+        else {
+            continue;
+        };
+        let new = nodes.len();
+        nodes.push(Node {
+            q: new_q,
+            parent: Some(parent),
+            cost: nodes[parent].cost + d,
+            children: Vec::new(),
+        });
+        nodes[parent].children.push(new);
+        // Rewire neighbours through the new node where cheaper.
+        for &(m, d) in &near {
+            if m == parent || nodes[new].cost + d >= nodes[m].cost {
+                continue;
+            }
+            if !validator.edge_valid(&new_q, &nodes[m].q) {
+                continue;
+            }
+            if let Some(old) = nodes[m].parent {
+                nodes[old].children.retain(|&c| c != m);
+            }
+            nodes[m].parent = Some(new);
+            nodes[new].children.push(m);
+            let delta = nodes[new].cost + d - nodes[m].cost;
+            let mut stack = vec![m];
+            while let Some(k) = stack.pop() {
+                nodes[k].cost += delta;
+                stack.extend(nodes[k].children.iter().copied());
+            }
+        }
+        for (g, (_, goal)) in goals.iter().enumerate() {
+            if distance(&new_q, goal) <= options.max_step && validator.edge_valid(&new_q, goal) {
+                goal_links.push((new, g));
+            }
+        }
+        if let Some((cost, _, _)) = best(&nodes, &goal_links) {
+            if stats.first_solution.is_none() {
+                stats.first_solution = Some(stats.iterations);
+            }
+            if stats.cost_history.last().is_none_or(|&(_, c)| cost < c) {
+                stats.cost_history.push((stats.iterations, cost));
+            }
+        }
+    }
+    stats.nodes = nodes.len();
+    stats.elapsed_ms = clock.elapsed().as_secs_f64() * 1e3;
+    let Some((cost, last, g)) = best(&nodes, &goal_links) else {
+        return Err(RrtError::NoPath {
+            iterations: stats.iterations,
+            elapsed_ms: stats.elapsed_ms,
+        });
+    };
+    let mut waypoints = vec![goals[g].1];
+    let mut k = Some(last);
+    while let Some(i) = k {
+        waypoints.push(nodes[i].q);
+        k = nodes[i].parent;
+    }
+    waypoints.reverse();
+    Ok(RrtPath {
+        waypoints,
+        goal: goals[g].0,
+        cost,
+        stats,
+    })
+}
+
+/// Path length in joint space.
+pub fn path_cost(path: &[Config]) -> f64 {
+    path.windows(2).map(|w| distance(&w[0], &w[1])).sum()
+}
+
+/// Random shortcutting: repeatedly joins two random waypoints directly when
+/// that edge is free, dropping what lay between. Never lengthens the path.
+pub fn shortcut(
+    path: &[Config],
+    validator: &dyn MotionValidator,
+    attempts: usize,
+    seed: u64,
+) -> Vec<Config> {
+    let mut path = path.to_vec();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    for _ in 0..attempts {
+        if path.len() < 3 {
+            break;
+        }
+        let i = rng.random_range(0..path.len() - 2);
+        let j = rng.random_range(i + 2..path.len());
+        if validator.edge_valid(&path[i], &path[j]) {
+            path.drain(i + 1..j);
+        }
+    }
+    path
+}
