@@ -80,12 +80,10 @@ fn tool_frame_sits_on_the_palm_face() {
     let flange = poses[robot.link_index("wrist_3_link").unwrap()];
     let tool = robot.tool_pose(&q);
     let offset = flange.inverse() * tool;
-    assert!(
-        (offset.translation.vector - Vector3::new(0.0, 0.0, ur5::PALM_THICKNESS)).norm() < 1e-15
-    );
+    assert!((offset.translation.vector - Vector3::new(0.0, 0.0, ur5::TOOL_OFFSET)).norm() < 1e-15);
     assert!(offset.rotation.angle() < 1e-15);
     // Slot: the two finger boxes leave 2 cm between them.
-    let fingers: Vec<f64> = ur5::GRIPPER_BOXES[1..]
+    let fingers: Vec<f64> = ur5::GRIPPER_BOXES[2..]
         .iter()
         .map(|b| b.centre[1])
         .collect();

@@ -26,12 +26,13 @@ pub const GROUND_Z: f64 = 0.0;
 /// base–upper arm (around the shoulder housing), forearm–wrist 2 and
 /// wrist 1–wrist 3 (around the wrist housings). The gripper sits in front of
 /// the flange face and wrist 2 behind it, but the hemispherical cap of
-/// wrist 2's capsule reaches past the face into the palm. Sampling showed
+/// wrist 2's capsule reaches past the face into the standoff and palm. Sampling showed
 /// these overlaps at the valid zero and home configurations.
-pub const DISABLED_PAIRS: [(&str, &str); 6] = [
+pub const DISABLED_PAIRS: [(&str, &str); 7] = [
     ("base_link_inertia", "upper_arm_link"),
     ("forearm_link", "wrist_2_link"),
     ("wrist_1_link", "wrist_3_link"),
+    ("wrist_2_link", "gripper_mount"),
     ("wrist_2_link", "gripper_palm"),
     ("wrist_2_link", "gripper_finger_left"),
     ("wrist_2_link", "gripper_finger_right"),
@@ -154,8 +155,9 @@ impl TreeObstacles {
 /// Which contacts are allowed in a query.
 #[derive(Debug, Clone, Default)]
 pub struct Allowed {
-    /// Branches (by the node they end at) the gripper may touch: the
-    /// contacted branch during a push.
+    /// Branches (by the node they end at) the gripper — palm, fingers and the
+    /// flange link they are bolted to — may touch: the contacted branch
+    /// during a push.
     pub gripper_branches: Vec<usize>,
 }
 
@@ -194,7 +196,9 @@ impl CollisionModel {
                 shapes.push(ShapeSlot {
                     link,
                     shape: shape.clone(),
-                    gripper: name.starts_with("gripper_"),
+                    // The flange carries the gripper; its capsule bulges
+                    // past the palm face, so it shares the gripper's allowance.
+                    gripper: name.starts_with("gripper_") || name == "wrist_3_link",
                     base: name == "base_link_inertia",
                 });
             }
@@ -213,7 +217,7 @@ impl CollisionModel {
                 if la == lb || adjacent(la, lb) || disabled(&names[la], &names[lb]) {
                     continue;
                 }
-                // The gripper is one rigid body with the flange link.
+                // The gripper and the flange are one rigid body.
                 if shapes[i].gripper && shapes[j].gripper {
                     continue;
                 }

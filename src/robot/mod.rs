@@ -3,6 +3,7 @@
 
 pub mod collision;
 pub mod ik;
+pub mod plan;
 pub mod rrt;
 pub mod scene;
 pub mod trajectory;

@@ -11,7 +11,7 @@
 
 use super::collision::{Allowed, CollisionModel, Hit, TreeObstacles};
 use super::rrt::{Config, MotionValidator};
-use super::ur5::{DH_A, DH_D, FINGER_LENGTH, PALM_THICKNESS};
+use super::ur5::{DH_A, DH_D, FINGER_LENGTH, TOOL_OFFSET};
 
 /// Largest capsule radius plus the gripper's half width, added to the
 /// kinematic reach to bound every collision shape (m).
@@ -20,7 +20,7 @@ const SHAPE_SLACK: f64 = 0.1;
 /// R_i: an upper bound on the distance from joint i's axis to any point of
 /// the robot's collision shapes (m), from the chain of DH lengths beyond it.
 pub const LEVER_ARMS: [f64; 6] = {
-    let tool = PALM_THICKNESS + FINGER_LENGTH + SHAPE_SLACK;
+    let tool = TOOL_OFFSET + FINGER_LENGTH + SHAPE_SLACK;
     let wrist = DH_D[4] + DH_D[5] + tool;
     let forearm = -DH_A[2] + DH_D[3] + wrist;
     let arm = -DH_A[1] + forearm;

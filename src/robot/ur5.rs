@@ -7,12 +7,14 @@
 //! joint's origin is T_x(a_{i−1}) R_x(α_{i−1}) T_z(d_i), so `wrist_3_link`
 //! is the DH frame 6, the tool flange, with z pointing out of the flange.
 //!
-//! Gripper (on the flange, all in the flange frame, metres): a palm box
-//! 0.04 (x) × 0.06 (y) × 0.01 (z) against the flange, and two fingers
-//! 0.04 × 0.02 × 0.05 at y = ±0.02 in front of it, leaving a slot 2 cm wide
-//! and 5 cm deep along x. The **tool frame** is at the centre of the palm's
-//! front face: tool z is the push direction (out of the palm), tool x runs
-//! along the slot (the held branch lies along it), tool y across the slot.
+//! Gripper (on the flange, all in the flange frame, metres): a 6 cm standoff
+//! (0.04 × 0.04 box) that keeps the held branch clear of the wrist housings,
+//! a palm box 0.04 (x) × 0.06 (y) × 0.01 (z) on it, and two fingers
+//! 0.04 × 0.02 × 0.05 at y = ±0.02 in front of the palm, leaving a slot 2 cm
+//! wide and 5 cm deep along x. The **tool frame** is at the centre of the
+//! palm's front face, 7 cm out of the flange: tool z is the push direction,
+//! tool x runs along the slot (the held branch lies along it), tool y across
+//! the slot.
 
 use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -80,8 +82,14 @@ pub fn default_base() -> Isometry3<f64> {
     Isometry3::translation(-0.5, 0.0, 0.1)
 }
 
-/// Palm thickness (m): the tool frame is this far out of the flange.
+/// Length of the standoff between flange and palm (m).
+pub const MOUNT_LENGTH: f64 = 0.06;
+/// Cross-section of the standoff (m).
+pub const MOUNT_WIDTH: f64 = 0.04;
+/// Palm thickness (m).
 pub const PALM_THICKNESS: f64 = 0.01;
+/// Distance of the tool frame (palm face) from the flange (m).
+pub const TOOL_OFFSET: f64 = MOUNT_LENGTH + PALM_THICKNESS;
 /// Finger length beyond the palm (m): the slot depth.
 pub const FINGER_LENGTH: f64 = 0.05;
 /// Width of the slot between the fingers (m).
@@ -189,10 +197,15 @@ pub struct BoxSpec {
     pub size: [f64; 3],
 }
 
-pub const GRIPPER_BOXES: [BoxSpec; 3] = [
+pub const GRIPPER_BOXES: [BoxSpec; 4] = [
+    BoxSpec {
+        link: "gripper_mount",
+        centre: [0.0, 0.0, MOUNT_LENGTH / 2.0],
+        size: [MOUNT_WIDTH, MOUNT_WIDTH, MOUNT_LENGTH],
+    },
     BoxSpec {
         link: "gripper_palm",
-        centre: [0.0, 0.0, PALM_THICKNESS / 2.0],
+        centre: [0.0, 0.0, MOUNT_LENGTH + PALM_THICKNESS / 2.0],
         size: [
             GRIPPER_DEPTH,
             SLOT_WIDTH + 2.0 * FINGER_THICKNESS,
@@ -204,7 +217,7 @@ pub const GRIPPER_BOXES: [BoxSpec; 3] = [
         centre: [
             0.0,
             (SLOT_WIDTH + FINGER_THICKNESS) / 2.0,
-            PALM_THICKNESS + FINGER_LENGTH / 2.0,
+            TOOL_OFFSET + FINGER_LENGTH / 2.0,
         ],
         size: [GRIPPER_DEPTH, FINGER_THICKNESS, FINGER_LENGTH],
     },
@@ -213,7 +226,7 @@ pub const GRIPPER_BOXES: [BoxSpec; 3] = [
         centre: [
             0.0,
             -(SLOT_WIDTH + FINGER_THICKNESS) / 2.0,
-            PALM_THICKNESS + FINGER_LENGTH / 2.0,
+            TOOL_OFFSET + FINGER_LENGTH / 2.0,
         ],
         size: [GRIPPER_DEPTH, FINGER_THICKNESS, FINGER_LENGTH],
     },
@@ -364,7 +377,7 @@ pub fn urdf_string() -> String {
         JointType::Fixed,
         "wrist_3_link",
         "tool",
-        Isometry3::translation(0.0, 0.0, PALM_THICKNESS),
+        Isometry3::translation(0.0, 0.0, TOOL_OFFSET),
         JointLimit::default(),
     ));
     let robot = Robot {

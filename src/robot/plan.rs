@@ -1,0 +1,381 @@
+//! The paper's Algorithm 1: try the policy's push candidates in order of
+//! affordance and return the first one the arm can execute.
+//!
+//! For a candidate (node j, push T):
+//! 1. **Pre-contact pose.** The gripper point g = p_j − 0.01·b̂ (on the
+//!    branch axis, 1 cm back from the node, b̂ the branch direction); the
+//!    tool starts 5 cm behind it along T: tool origin g − 0.05·T̂, tool z
+//!    along T̂, tool x along the branch (b̂ with its T̂ component removed), so
+//!    the slot lies across the branch. The slot is symmetric, so the pose
+//!    turned by π about z is tried too.
+//! 2. **IK**: all closed-form solutions of both poses, within limits.
+//! 3. **Goal check**: solutions in collision are dropped. The gripper may
+//!    touch the contacted branch and the branches leaving node j; the arm's
+//!    links may touch nothing.
+//! 4. **Push check**: the tool moves in a straight line by |T| + 5 cm along
+//!    T̂; every 5 mm of it must have an IK solution continuous with the last
+//!    (no joint moves more than 0.15 rad per step) that is collision-free.
+//!    The first 5 cm are checked against the tree at rest; once the slot
+//!    holds the branch, against the tree as the simulator deforms it
+//!    (quasi-static snapshots every 1 cm of push, each step checked against
+//!    the snapshot at or beyond it). The gripper may touch the pushed
+//!    subtree; a push the simulator rejects (the branch would slip out) is
+//!    infeasible.
+//! 5. **RRT\*** from the start to all remaining goal configurations at once.
+//! 6. The first success is shortcut, timed (trapezoidal joint profiles for
+//!    the approach, constant tool speed for the push) and returned with the
+//!    index where the push begins. Every attempt is reported with its
+//!    outcome and time.
+
+use std::time::{Duration, Instant};
+
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use serde::Serialize;
+
+use super::collision::{Allowed, CollisionModel, TreeObstacles};
+use super::rrt::{Config, MotionValidator, RrtError, RrtStarOptions, rrt_star, shortcut};
+use super::scene::PlanningScene;
+use super::trajectory::{TimedPoint, time_parameterize};
+use super::ur5::{MAX_ACCELERATION, MAX_VELOCITY};
+use crate::sim::{GRIP_OFFSET, Push, SimConfig, simulate};
+use crate::tree::Tree;
+
+/// The tool starts this far behind the gripper point along the push (m).
+pub const APPROACH_OFFSET: f64 = 0.05;
+/// Spacing of the IK/collision checks along the push (m).
+pub const PUSH_STEP: f64 = 0.005;
+/// Largest joint change between two push steps (rad); more means the arm
+/// would have to jump to another IK branch.
+pub const PUSH_MAX_JOINT_STEP: f64 = 0.15;
+/// Tool speed during the push (m/s).
+pub const PUSH_SPEED: f64 = 0.05;
+/// Spacing of the deformed-tree snapshots used while pushing (m).
+pub const PUSH_SNAPSHOT: f64 = 0.01;
+
+/// One push the policy proposes.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PushCandidate {
+    pub node: usize,
+    pub push: Vector3<f64>,
+}
+
+#[derive(Debug, Clone)]
+pub struct PlanOptions {
+    pub rrt: RrtStarOptions,
+    /// Shortcutting attempts on the approach path.
+    pub shortcut_attempts: usize,
+    /// Stop trying candidates after this long.
+    pub budget: Option<Duration>,
+    /// Sampling interval of the timed approach (s).
+    pub dt: f64,
+}
+
+impl Default for PlanOptions {
+    fn default() -> Self {
+        Self {
+            rrt: RrtStarOptions {
+                time_budget: Some(Duration::from_millis(150)),
+                ..RrtStarOptions::default()
+            },
+            shortcut_attempts: 100,
+            budget: Some(Duration::from_secs(2)),
+            dt: 0.05,
+        }
+    }
+}
+
+/// Why a candidate was or was not planned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    Planned,
+    /// Not a usable push (root node, zero push, push along the branch).
+    InvalidCandidate,
+    /// No IK solution for the pre-contact pose.
+    Unreachable,
+    /// Every IK solution of the pre-contact pose collides.
+    GoalInCollision,
+    /// No pre-contact solution can carry out the straight push.
+    PushInfeasible,
+    /// RRT* found no path within its budget.
+    NoPath,
+    /// The overall budget ran out before this candidate.
+    Skipped,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Attempt {
+    pub node: usize,
+    /// 1-based position in the candidate list.
+    pub rank: usize,
+    pub outcome: Outcome,
+    pub ms: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PushPlan {
+    pub node: usize,
+    pub rank: usize,
+    pub push: Vector3<f64>,
+    /// Approach then push, timed.
+    pub trajectory: Vec<TimedPoint>,
+    /// Index of the trajectory point where the push begins (the tool at the
+    /// pre-contact pose).
+    pub push_start_index: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PlanReport {
+    pub plan: Option<PushPlan>,
+    pub attempts: Vec<Attempt>,
+    pub total_ms: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlanError {
+    #[error("the start configuration is in collision")]
+    StartInCollision,
+}
+
+/// Tool poses for the pre-contact of a push (both slot orientations), or
+/// `None` when the push is unusable.
+pub fn pre_contact_poses(tree: &Tree, candidate: &PushCandidate) -> Option<[Isometry3<f64>; 2]> {
+    let branch = tree.branch_direction(candidate.node)?;
+    let length = candidate.push.norm();
+    if !(length.is_finite() && length > 1e-6) {
+        return None;
+    }
+    let z = candidate.push / length;
+    let along = branch - z * branch.dot(&z);
+    if along.norm() < 1e-3 {
+        return None; // pushing along the branch: no slot orientation
+    }
+    let x = along.normalize();
+    let y = z.cross(&x);
+    let grip = tree.position(candidate.node) - branch * GRIP_OFFSET;
+    let origin = grip - z * APPROACH_OFFSET;
+    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
+        Matrix3::from_columns(&[x, y, z]),
+    ));
+    let pose = Isometry3::from_parts(Translation3::from(origin.coords), rotation);
+    let flipped = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
+    Some([pose, flipped])
+}
+
+/// Runs Algorithm 1 over `candidates` (best first).
+pub fn plan_push(
+    model: &CollisionModel,
+    tree: &Tree,
+    candidates: &[PushCandidate],
+    start: &Config,
+    options: &PlanOptions,
+) -> Result<PlanReport, PlanError> {
+    let clock = Instant::now();
+    let obstacles = TreeObstacles::new(tree);
+    let free_scene = PlanningScene::new(model, &obstacles, Allowed::default());
+    if !free_scene.config_valid(start) {
+        return Err(PlanError::StartInCollision);
+    }
+    let mut attempts = Vec::new();
+    for (k, candidate) in candidates.iter().enumerate() {
+        let rank = k + 1;
+        if options.budget.is_some_and(|b| clock.elapsed() >= b) {
+            attempts.push(Attempt {
+                node: candidate.node,
+                rank,
+                outcome: Outcome::Skipped,
+                ms: 0.0,
+            });
+            continue;
+        }
+        let started = Instant::now();
+        let (outcome, plan) = attempt(model, tree, &obstacles, candidate, rank, start, options);
+        attempts.push(Attempt {
+            node: candidate.node,
+            rank,
+            outcome,
+            ms: started.elapsed().as_secs_f64() * 1e3,
+        });
+        if let Some(plan) = plan {
+            // Later candidates are not needed.
+            for (k2, c) in candidates.iter().enumerate().skip(k + 1) {
+                attempts.push(Attempt {
+                    node: c.node,
+                    rank: k2 + 1,
+                    outcome: Outcome::Skipped,
+                    ms: 0.0,
+                });
+            }
+            return Ok(PlanReport {
+                plan: Some(plan),
+                attempts,
+                total_ms: clock.elapsed().as_secs_f64() * 1e3,
+            });
+        }
+    }
+    Ok(PlanReport {
+        plan: None,
+        attempts,
+        total_ms: clock.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+fn attempt(
+    model: &CollisionModel,
+    tree: &Tree,
+    obstacles: &TreeObstacles,
+    candidate: &PushCandidate,
+    rank: usize,
+    start: &Config,
+    options: &PlanOptions,
+) -> (Outcome, Option<PushPlan>) {
+    if candidate.node == 0 || candidate.node >= tree.len() {
+        return (Outcome::InvalidCandidate, None);
+    }
+    let Some(poses) = pre_contact_poses(tree, candidate) else {
+        return (Outcome::InvalidCandidate, None);
+    };
+    let goals: Vec<Config> = poses
+        .iter()
+        .flat_map(|p| model.robot.inverse_kinematics(p, start))
+        .collect();
+    if goals.is_empty() {
+        return (Outcome::Unreachable, None);
+    }
+    let node = candidate.node;
+    let near_contact = Allowed {
+        gripper_branches: std::iter::once(node)
+            .chain(tree.children(node).iter().copied())
+            .collect(),
+    };
+    let approach_scene = PlanningScene::new(model, obstacles, near_contact);
+    let free: Vec<Config> = goals
+        .into_iter()
+        .filter(|g| approach_scene.config_valid(g))
+        .collect();
+    if free.is_empty() {
+        return (Outcome::GoalInCollision, None);
+    }
+    // Obstacles along the push: the tree at rest until contact, then the
+    // simulated tree every PUSH_SNAPSHOT of push.
+    let Some(snapshots) = push_snapshots(tree, candidate) else {
+        return (Outcome::PushInfeasible, None);
+    };
+    let pushed = Allowed {
+        gripper_branches: tree.subtree(node),
+    };
+    let direction = candidate.push.normalize();
+    let travel = candidate.push.norm() + APPROACH_OFFSET;
+    let scene_at = |distance: f64| -> PlanningScene<'_> {
+        let contact = (distance - APPROACH_OFFSET).max(0.0);
+        let index = ((contact / PUSH_SNAPSHOT).ceil() as usize).min(snapshots.len() - 1);
+        let obstacles = if distance <= APPROACH_OFFSET {
+            obstacles
+        } else {
+            &snapshots[index]
+        };
+        PlanningScene::new(model, obstacles, pushed.clone())
+    };
+    let mut pushes: Vec<(Config, Vec<Config>)> = Vec::new();
+    for goal in free {
+        if let Some(line) = push_line(model, &scene_at, &goal, &direction, travel) {
+            pushes.push((goal, line));
+        }
+    }
+    if pushes.is_empty() {
+        return (Outcome::PushInfeasible, None);
+    }
+    let goal_configs: Vec<Config> = pushes.iter().map(|p| p.0).collect();
+    let path = match rrt_star(start, &goal_configs, &approach_scene, &options.rrt) {
+        Ok(path) => path,
+        Err(RrtError::NoPath { .. } | RrtError::NoValidGoal | RrtError::StartInvalid) => {
+            return (Outcome::NoPath, None);
+        }
+    };
+    let smooth = shortcut(
+        &path.waypoints,
+        &approach_scene,
+        options.shortcut_attempts,
+        options.rrt.seed,
+    );
+    let mut trajectory = time_parameterize(&smooth, &MAX_VELOCITY, &MAX_ACCELERATION, options.dt);
+    let push_start_index = trajectory.len() - 1;
+    let t0 = trajectory.last().map_or(0.0, |p| p.t);
+    let line = &pushes[path.goal].1;
+    let step_time = PUSH_STEP / PUSH_SPEED;
+    let mut t = t0;
+    for w in line.windows(2) {
+        // Slow down where a joint would exceed its speed limit.
+        let joint_time = (0..6)
+            .map(|i| (w[1][i] - w[0][i]).abs() / MAX_VELOCITY[i])
+            .fold(0.0, f64::max);
+        t += step_time.max(joint_time);
+        trajectory.push(TimedPoint { t, q: w[1] });
+    }
+    (
+        Outcome::Planned,
+        Some(PushPlan {
+            node,
+            rank,
+            push: candidate.push,
+            trajectory,
+            push_start_index,
+        }),
+    )
+}
+
+/// The tree during the push: snapshot k is the steady state after k·1 cm
+/// of push (k = 0 is the tree at rest, the last the full push). `None` when
+/// the simulator rejects part of the push.
+fn push_snapshots(tree: &Tree, candidate: &PushCandidate) -> Option<Vec<TreeObstacles>> {
+    let length = candidate.push.norm();
+    let count = (length / PUSH_SNAPSHOT).ceil().max(1.0) as usize;
+    let mut snapshots = vec![TreeObstacles::new(tree)];
+    for k in 1..=count {
+        let push = Push {
+            node: candidate.node,
+            vector: candidate.push * (k as f64 / count as f64),
+        };
+        let outcome = simulate(tree, &push, &SimConfig::default()).ok()?;
+        snapshots.push(TreeObstacles::deformed(tree, &outcome.final_positions));
+    }
+    Some(snapshots)
+}
+
+/// Joint configurations along the straight push from `goal`, every
+/// [`PUSH_STEP`], or `None` when IK breaks or something collides. The
+/// scene for a step depends on how far the tool has moved.
+fn push_line<'a>(
+    model: &'a CollisionModel,
+    scene_at: &dyn Fn(f64) -> PlanningScene<'a>,
+    goal: &Config,
+    direction: &Vector3<f64>,
+    travel: f64,
+) -> Option<Vec<Config>> {
+    let start_pose = model.robot.tool_pose(goal);
+    let steps = (travel / PUSH_STEP).ceil() as usize;
+    let mut line = vec![*goal];
+    for k in 1..=steps {
+        let distance = travel * k as f64 / steps as f64;
+        let offset = direction * distance;
+        let pose = Isometry3::from_parts(
+            Translation3::from(start_pose.translation.vector + offset),
+            start_pose.rotation,
+        );
+        let previous = *line.last().expect("non-empty");
+        let next = *model.robot.inverse_kinematics(&pose, &previous).first()?;
+        let jump = (0..6)
+            .map(|i| (next[i] - previous[i]).abs())
+            .fold(0.0, f64::max);
+        if jump > PUSH_MAX_JOINT_STEP || !scene_at(distance).edge_valid(&previous, &next) {
+            return None;
+        }
+        line.push(next);
+    }
+    Some(line)
+}
+
+/// Tool position along a trajectory point (for drawings and checks).
+pub fn tool_position(model: &CollisionModel, q: &Config) -> Point3<f64> {
+    Point3::from(model.robot.tool_pose(q).translation.vector)
+}
