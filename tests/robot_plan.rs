@@ -1,0 +1,206 @@
+//! Algorithm 1 end to end on hand-built scenes.
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
+use treemanip::robot::plan::{
+    APPROACH_OFFSET, Outcome, PlanOptions, PushCandidate, plan_push, pre_contact_poses,
+};
+use treemanip::robot::{Ur5, ur5};
+use treemanip::tree::{Tree, Wood};
+
+/// Trunk 0 → 1 → 2 up the z axis, a side branch 1 → 3 along +x, and a
+/// slanted branch 1 → 4 that passes just under branch 3.
+fn scene_tree() -> Tree {
+    let positions = vec![
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(0.0, 0.0, 0.5),
+        Point3::new(0.0, 0.0, 0.9),
+        Point3::new(0.25, 0.0, 0.5),
+        Point3::new(0.48, 0.0, 0.34),
+    ];
+    let parents = vec![None, Some(0), Some(1), Some(1), Some(1)];
+    let wood = Wood::default();
+    let branches = (0..5)
+        .map(|j| {
+            parents[j].map(|p: usize| {
+                let r = if p == 0 { 0.02 } else { 0.008 };
+                wood.branch(r, (positions[j] - positions[p]).norm())
+            })
+        })
+        .collect();
+    Tree::new(positions, parents, branches).unwrap()
+}
+
+fn model() -> CollisionModel {
+    // Beside the tree, on the side the sideways pushes come from.
+    CollisionModel::new(Ur5::default().with_base(Isometry3::translation(0.2, 0.55, 0.1)))
+}
+
+#[test]
+fn a_candidate_whose_pre_contact_pose_is_inside_the_tree_is_skipped() {
+    let tree = scene_tree();
+    let model = model();
+    // Pushing node 3 up puts the gripper under branch 3, where branch 4 runs.
+    let up = PushCandidate {
+        node: 3,
+        push: Vector3::new(0.0, 0.0, 0.1),
+    };
+    let [pose, _] = pre_contact_poses(&tree, &up).unwrap();
+    assert!(
+        (pose.translation.vector - Vector3::new(0.24, 0.0, 0.5 - APPROACH_OFFSET)).norm() < 1e-12
+    );
+    // Pushing it 5 cm sideways (−y), slightly up, is free, and short enough
+    // that the leaf stays in the slot.
+    let side = PushCandidate {
+        node: 3,
+        push: Vector3::new(0.0, -0.05, 0.015),
+    };
+    let report = plan_push(
+        &model,
+        &tree,
+        &[up, side],
+        &ur5::HOME,
+        &PlanOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(
+        report.attempts[0].outcome,
+        Outcome::GoalInCollision,
+        "{:?}",
+        report.attempts
+    );
+    assert_eq!(
+        report.attempts[1].outcome,
+        Outcome::Planned,
+        "{:?}",
+        report.attempts
+    );
+    let plan = report.plan.expect("the second candidate is planned");
+    assert_eq!((plan.node, plan.rank), (3, 2));
+}
+
+#[test]
+fn the_plan_approaches_then_pushes_along_the_requested_line() {
+    let tree = scene_tree();
+    let model = model();
+    let push = Vector3::new(0.0, -0.05, 0.015);
+    let candidate = PushCandidate { node: 3, push };
+    let report = plan_push(
+        &model,
+        &tree,
+        &[candidate],
+        &ur5::HOME,
+        &PlanOptions::default(),
+    )
+    .unwrap();
+    let plan = report.plan.expect("planned");
+    let trajectory = &plan.trajectory;
+    assert_eq!(trajectory[0].q, ur5::HOME);
+    assert_eq!(trajectory[0].t, 0.0);
+    assert!(
+        trajectory.windows(2).all(|w| w[1].t > w[0].t),
+        "time increases"
+    );
+    // At the push start the tool is at one of the pre-contact poses.
+    let poses = pre_contact_poses(&tree, &candidate).unwrap();
+    let at_start = model.robot.tool_pose(&trajectory[plan.push_start_index].q);
+    assert!(poses.iter().any(
+        |p| (p.translation.vector - at_start.translation.vector).norm() < 1e-9
+            && p.rotation.angle_to(&at_start.rotation) < 1e-9
+    ));
+    // The push is a straight line of length |T| + 5 cm along T.
+    let end = model.robot.tool_pose(&trajectory.last().unwrap().q);
+    let travel = end.translation.vector - at_start.translation.vector;
+    assert!((travel - push.normalize() * (push.norm() + APPROACH_OFFSET)).norm() < 1e-9);
+    for point in &trajectory[plan.push_start_index..] {
+        let p = model.robot.tool_pose(&point.q).translation.vector - at_start.translation.vector;
+        assert!(
+            p.cross(&push.normalize()).norm() < 1e-9,
+            "off the push line by {}",
+            p.cross(&push.normalize()).norm()
+        );
+        assert!(
+            end.rotation
+                .angle_to(&model.robot.tool_pose(&point.q).rotation)
+                < 1e-9,
+            "the tool turned"
+        );
+    }
+    // The approach never touches the tree (beyond the gripper at the
+    // contacted branch), checked at every sample without margin.
+    let obstacles = TreeObstacles::new(&tree);
+    let allowed = Allowed {
+        gripper_branches: vec![3],
+    };
+    for point in &trajectory[..=plan.push_start_index] {
+        assert_eq!(model.check(&point.q, &obstacles, &allowed), None);
+    }
+}
+
+#[test]
+fn unusable_and_unreachable_candidates_are_reported() {
+    let tree = scene_tree();
+    let model = model();
+    let candidates = [
+        PushCandidate {
+            node: 0,
+            push: Vector3::new(0.0, 0.1, 0.0),
+        }, // the root
+        PushCandidate {
+            node: 3,
+            push: Vector3::new(0.1, 0.0, 0.0),
+        }, // along the branch
+        PushCandidate {
+            node: 2,
+            push: Vector3::new(0.0, 0.0, 0.0),
+        }, // no push
+    ];
+    let report = plan_push(
+        &model,
+        &tree,
+        &candidates,
+        &ur5::HOME,
+        &PlanOptions::default(),
+    )
+    .unwrap();
+    assert!(report.plan.is_none());
+    assert!(
+        report
+            .attempts
+            .iter()
+            .all(|a| a.outcome == Outcome::InvalidCandidate),
+        "{:?}",
+        report.attempts
+    );
+    // A tree far beyond the arm's reach.
+    let far = Tree::new(
+        tree.positions()
+            .iter()
+            .map(|p| p + Vector3::new(3.0, 0.0, 0.0))
+            .collect(),
+        tree.parents().to_vec(),
+        tree.branches().to_vec(),
+    )
+    .unwrap();
+    let report = plan_push(
+        &model,
+        &far,
+        &[PushCandidate {
+            node: 3,
+            push: Vector3::new(0.0, -0.1, 0.0),
+        }],
+        &ur5::HOME,
+        &PlanOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(report.attempts[0].outcome, Outcome::Unreachable);
+}
+
+#[test]
+fn a_start_in_collision_is_an_error() {
+    let tree = scene_tree();
+    let model = model();
+    let into_ground = [0.0, 1.2, 0.0, 0.0, 0.0, 0.0];
+    let err = plan_push(&model, &tree, &[], &into_ground, &PlanOptions::default()).unwrap_err();
+    assert_eq!(err, treemanip::robot::plan::PlanError::StartInCollision);
+}
