@@ -7,6 +7,7 @@
 
 pub mod api;
 pub mod dataset;
+pub mod eval;
 pub mod robot;
 pub mod seed;
 pub mod sim;

@@ -61,7 +61,7 @@ impl Default for RrtStarOptions {
             goal_bias: 0.1,
             max_step: 0.6,
             gamma: 6.0,
-            refine_iterations: 150,
+            refine_iterations: 40,
             sampling_margin: 1.5,
             seed: 1,
         }

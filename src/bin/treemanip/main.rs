@@ -2,6 +2,7 @@
 //! collects data, trains, exports and evaluates models.
 
 mod dataset;
+mod plan;
 mod progress;
 mod sim;
 mod trees;
@@ -26,6 +27,18 @@ enum Command {
     /// Collect and inspect push-episode datasets (.npz).
     #[command(subcommand)]
     Dataset(dataset::DatasetCommand),
+    /// Plan the UR5's motion for a push (the paper's Algorithm 1).
+    Plan(plan::PlanArgs),
+    /// Evaluate components the way the paper does.
+    #[command(subcommand)]
+    Eval(EvalCommand),
+}
+
+#[derive(Subcommand)]
+enum EvalCommand {
+    /// Algorithm 1 on test episodes of every size: success rate, planned
+    /// rank histogram (the paper's Fig. 10), planning times.
+    Plan(plan::EvalPlanArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -33,6 +46,8 @@ fn main() -> std::process::ExitCode {
         Command::Trees(cmd) => trees::run(cmd),
         Command::Sim(cmd) => sim::run(cmd),
         Command::Dataset(cmd) => dataset::run(cmd),
+        Command::Plan(args) => plan::plan(args),
+        Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

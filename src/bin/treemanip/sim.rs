@@ -35,7 +35,7 @@ pub struct PushArgs {
     json: bool,
 }
 
-fn parse_vector(s: &str) -> Result<Vector3<f64>, String> {
+pub fn parse_vector(s: &str) -> Result<Vector3<f64>, String> {
     let parts: Vec<f64> = s
         .split(',')
         .map(|p| {

@@ -1,0 +1,4 @@
+//! Evaluations the way the paper reports them, with tables and figures.
+
+pub mod plan;
+pub mod plots;
