@@ -1,0 +1,179 @@
+//! Robot throughput: `cargo bench --bench robot`.
+//!
+//! - collision queries/s: empty workcell, and against a 30-node tree;
+//! - closed-form IK solves/s;
+//! - RRT* (ours) against the `rrt` crate's RRT-Connect on the same scene
+//!   (a fence between two configurations) and the same collision function.
+//!   RRT-Connect only checks the configurations it adds, `extend_length`
+//!   apart, so its paths are re-checked with our conservative edge test.
+//!
+//! Numbers only, no thresholds. Algorithm 1 over 2,100 episodes is
+//! `treemanip eval plan`.
+
+use std::cell::RefCell;
+use std::f64::consts::FRAC_PI_2;
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use nalgebra::{Point3, Vector3};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
+use treemanip::robot::ik;
+use treemanip::robot::rrt::{Config, MotionValidator, RrtStarOptions, rrt_star};
+use treemanip::robot::scene::PlanningScene;
+use treemanip::robot::{Ur5, ur5};
+use treemanip::tree::{ScaParams, generate};
+
+fn rate(budget: Duration, mut f: impl FnMut(u64)) -> f64 {
+    let start = Instant::now();
+    let mut n = 0;
+    while start.elapsed() < budget {
+        f(n);
+        n += 1;
+    }
+    n as f64 / start.elapsed().as_secs_f64()
+}
+
+fn percentile(v: &mut [f64], p: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * p).round() as usize]
+}
+
+fn main() {
+    let budget = Duration::from_secs(2);
+    let model = CollisionModel::new(Ur5::default());
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let configs: Vec<Config> = (0..4096)
+        .map(|_| {
+            std::array::from_fn(|i| {
+                rng.random_range(ur5::JOINT_LIMITS[i].0..ur5::JOINT_LIMITS[i].1)
+            })
+        })
+        .collect();
+    let empty = TreeObstacles::empty();
+    let tree = generate(30, 1, &ScaParams::default()).unwrap();
+    let obstacles = TreeObstacles::new(&tree);
+    let none = Allowed::default();
+    println!("collision queries (random configurations, one thread)");
+    let r = rate(budget, |i| {
+        black_box(model.check(&configs[i as usize % 4096], &empty, &none));
+    });
+    println!("  empty workcell      {:>10.0} /s  ({:.2} µs)", r, 1e6 / r);
+    let r = rate(budget, |i| {
+        black_box(model.check(&configs[i as usize % 4096], &obstacles, &none));
+    });
+    println!("  30-node tree        {:>10.0} /s  ({:.2} µs)", r, 1e6 / r);
+    // Near the tree: configurations whose tool is within 30 cm of a node.
+    let near: Vec<Config> = configs
+        .iter()
+        .filter(|q| {
+            let p = Point3::from(model.robot.tool_pose(q).translation.vector);
+            tree.positions().iter().any(|n| (n - p).norm() < 0.3)
+        })
+        .copied()
+        .collect();
+    if !near.is_empty() {
+        let r = rate(budget, |i| {
+            black_box(model.check(&near[i as usize % near.len()], &obstacles, &none));
+        });
+        println!(
+            "  tool near the tree  {:>10.0} /s  ({:.2} µs, {} configurations)",
+            r,
+            1e6 / r,
+            near.len()
+        );
+    }
+
+    let targets: Vec<_> = configs.iter().map(ik::forward).collect();
+    let r = rate(budget, |i| {
+        black_box(ik::solve(&targets[i as usize % 4096], &[0.0; 6]));
+    });
+    println!(
+        "\nclosed-form IK        {:>10.0} /s  ({:.2} µs)",
+        r,
+        1e6 / r
+    );
+
+    // The fence scene of tests/robot_rrt.rs.
+    let start: Config = [0.0, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0];
+    let goal: Config = [1.3, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0];
+    let base = ur5::default_base().translation.vector;
+    let tool = |q: &Config| model.robot.tool_pose(q).translation.vector - base;
+    let (a, b) = (tool(&start), tool(&goal));
+    let bearing = (a.y.atan2(a.x) + b.y.atan2(b.x)) / 2.0;
+    let poles: Vec<_> = (0..13)
+        .map(|k| {
+            let r = 0.3 + 0.05 * k as f64;
+            let foot = Point3::new(base.x + r * bearing.cos(), base.y + r * bearing.sin(), 0.0);
+            (k, foot, foot + Vector3::z() * 0.5, 0.02)
+        })
+        .collect();
+    let fence = TreeObstacles::from_capsules(&poles);
+    let scene = PlanningScene::new(&model, &fence, Allowed::default());
+    let runs = 40;
+    println!("\nfence scene, {runs} seeds each (start → goal through a 0.5 m fence)");
+    let mut times = Vec::new();
+    let mut costs = Vec::new();
+    for seed in 0..runs {
+        let options = RrtStarOptions {
+            seed,
+            time_budget: Some(Duration::from_secs(2)),
+            ..RrtStarOptions::default()
+        };
+        let t = Instant::now();
+        if let Ok(p) = rrt_star(&start, &[goal], &scene, &options) {
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            costs.push(p.cost);
+        }
+    }
+    let solved = times.len();
+    println!(
+        "  RRT* (ours)         {solved}/{runs} solved, median {:.1} ms, p95 {:.1} ms, median cost {:.2} rad",
+        percentile(&mut times, 0.5),
+        percentile(&mut times, 0.95),
+        percentile(&mut costs, 0.5)
+    );
+    let mut times = Vec::new();
+    let mut costs = Vec::new();
+    let mut invalid = 0;
+    for seed in 0..runs {
+        let sampler = RefCell::new(ChaCha8Rng::seed_from_u64(seed));
+        let t = Instant::now();
+        let result = rrt::dual_rrt_connect(
+            &start,
+            &goal,
+            |q: &[f64]| scene.config_valid(&<Config>::try_from(q).unwrap()),
+            || {
+                let mut r = sampler.borrow_mut();
+                (0..6)
+                    .map(|i| {
+                        r.random_range(
+                            ur5::JOINT_LIMITS[i].0.max(-2.5)..ur5::JOINT_LIMITS[i].1.min(2.5),
+                        )
+                    })
+                    .collect()
+            },
+            0.05,
+            20_000,
+        );
+        if let Ok(path) = result {
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            let path: Vec<Config> = path
+                .iter()
+                .map(|q| <Config>::try_from(q.as_slice()).unwrap())
+                .collect();
+            costs.push(treemanip::robot::rrt::path_cost(&path));
+            if !path.windows(2).all(|w| scene.edge_valid(&w[0], &w[1])) {
+                invalid += 1;
+            }
+        }
+    }
+    let solved = times.len();
+    println!(
+        "  RRT-Connect (rrt)   {solved}/{runs} solved, median {:.1} ms, p95 {:.1} ms, median cost {:.2} rad, {invalid} paths fail the conservative edge check",
+        percentile(&mut times, 0.5),
+        percentile(&mut times, 0.95),
+        percentile(&mut costs, 0.5)
+    );
+}
