@@ -8,6 +8,7 @@
 pub mod api;
 pub mod dataset;
 pub mod eval;
+pub mod graph;
 pub mod robot;
 pub mod seed;
 pub mod sim;
