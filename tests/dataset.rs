@@ -289,3 +289,67 @@ fn sim_push_prints_one_checkable_json_object() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("three comma-separated numbers"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn plan_cli_reports_attempts_and_trajectory_as_json() {
+    let dir = temp_dir("plan");
+    let out = dir.to_str().unwrap();
+    assert!(
+        treemanip(&[
+            "trees",
+            "generate",
+            "--nodes",
+            "12",
+            "--per-size",
+            "1",
+            "--out",
+            out
+        ])
+        .status
+        .success()
+    );
+    let tree = format!("{out}/N12/tree_000.urdf");
+    // Push the root's first branch sideways: the planner answers either way.
+    let run = treemanip(&[
+        "plan",
+        "--tree",
+        &tree,
+        "--node",
+        "2",
+        "--push",
+        "0,-0.06,0.01",
+        "--json",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let v: Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(v["joint_names"].as_array().unwrap().len(), 6);
+    assert_eq!(v["attempts"][0]["rank"], 1);
+    assert_eq!(v["attempts"][0]["node"], 2);
+    match v["status"].as_str().unwrap() {
+        "planned" => {
+            let trajectory = v["plan"]["trajectory"].as_array().unwrap();
+            assert!(v["plan"]["push_start_index"].as_u64().unwrap() < trajectory.len() as u64);
+            assert_eq!(trajectory[0]["q"].as_array().unwrap().len(), 6);
+        }
+        "no_plan" => assert!(v["plan"].is_null()),
+        other => panic!("status {other}"),
+    }
+    let bad = treemanip(&[
+        "plan",
+        "--tree",
+        &tree,
+        "--node",
+        "2",
+        "--push",
+        "0,-0.06,0.01",
+        "--start",
+        "0,0,0,0,0",
+    ]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("expected 6 comma-separated numbers"));
+    std::fs::remove_dir_all(&dir).ok();
+}

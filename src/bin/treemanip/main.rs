@@ -1,6 +1,7 @@
 //! `treemanip`: the offline tool. Generates trees, (later) simulates pushes,
 //! collects data, trains, exports and evaluates models.
 
+mod args;
 mod dataset;
 mod plan;
 mod progress;

@@ -14,25 +14,17 @@ use treemanip::eval::plots::rank_histogram_svg;
 use treemanip::robot::collision::CollisionModel;
 use treemanip::robot::plan::{PlanOptions, PushCandidate, plan_push};
 use treemanip::robot::{Ur5, ur5};
-use treemanip::tree::urdf;
 
-use crate::sim::parse_vector;
+use crate::args::{TreePush, parse_numbers, parse_vector};
 use crate::trees::{NodeSizes, parse_sizes};
 
 #[derive(Args)]
 pub struct PlanArgs {
-    /// A tree URDF file.
-    #[arg(long)]
-    tree: PathBuf,
-    /// The node to push.
-    #[arg(long)]
-    node: usize,
-    /// Push T in metres: `DX,DY,DZ`.
-    #[arg(long, value_parser = parse_vector, allow_hyphen_values = true)]
-    push: Vector3<f64>,
+    #[command(flatten)]
+    target: TreePush,
     /// Start joint configuration (rad), six comma-separated values.
     /// Default: the paper's home pose.
-    #[arg(long, value_parser = parse_joints, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse_numbers::<6>, allow_hyphen_values = true)]
     start: Option<[f64; 6]>,
     /// Arm base position `X,Y,Z` (m), identity orientation. Default: the
     /// paper's (−0.5, 0, 0.1).
@@ -46,18 +38,6 @@ pub struct PlanArgs {
     json: bool,
 }
 
-fn parse_joints(s: &str) -> Result<[f64; 6], String> {
-    let values: Vec<f64> = s
-        .split(',')
-        .map(|p| {
-            p.trim()
-                .parse::<f64>()
-                .map_err(|_| format!("`{p}` is not a number"))
-        })
-        .collect::<Result<_, _>>()?;
-    <[f64; 6]>::try_from(values).map_err(|v| format!("expected 6 joint values, got {}", v.len()))
-}
-
 #[derive(Serialize)]
 struct PlanJson<'a> {
     status: &'static str,
@@ -67,8 +47,7 @@ struct PlanJson<'a> {
 }
 
 pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
-    let tree = urdf::read_file(&args.tree)
-        .with_context(|| format!("cannot load tree {}", args.tree.display()))?;
+    let tree = args.target.load_tree()?;
     let base = args
         .base
         .map_or_else(ur5::default_base, |b| Isometry3::translation(b.x, b.y, b.z));
@@ -77,8 +56,8 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
     options.rrt.seed = args.seed;
     let start = args.start.unwrap_or(ur5::HOME);
     let candidate = PushCandidate {
-        node: args.node,
-        push: args.push,
+        node: args.target.node,
+        push: args.target.push,
     };
     let report = plan_push(&model, &tree, &[candidate], &start, &options).context("cannot plan")?;
     if args.json {

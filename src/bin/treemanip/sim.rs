@@ -1,13 +1,11 @@
 //! `treemanip sim …`
 
-use std::path::PathBuf;
-
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use nalgebra::Vector3;
 use serde::Serialize;
 use treemanip::sim::{ContactModel, Push, SimConfig, SolverReport, simulate};
-use treemanip::tree::urdf;
+
+use crate::args::TreePush;
 
 #[derive(Subcommand)]
 pub enum SimCommand {
@@ -17,15 +15,8 @@ pub enum SimCommand {
 
 #[derive(Args)]
 pub struct PushArgs {
-    /// A tree URDF file.
-    #[arg(long)]
-    tree: PathBuf,
-    /// The contacted node (its branch is held by the gripper).
-    #[arg(long)]
-    node: usize,
-    /// The gripper's displacement T in metres: `DX,DY,DZ`.
-    #[arg(long, value_parser = parse_vector, allow_hyphen_values = true)]
-    push: Vector3<f64>,
+    #[command(flatten)]
+    target: TreePush,
     /// Contact model: `slot` (the branch slides in the gripper's slot) or
     /// `pinned` (the node moves exactly by the push).
     #[arg(long, default_value = "slot")]
@@ -33,21 +24,6 @@ pub struct PushArgs {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
-}
-
-pub fn parse_vector(s: &str) -> Result<Vector3<f64>, String> {
-    let parts: Vec<f64> = s
-        .split(',')
-        .map(|p| {
-            p.trim()
-                .parse::<f64>()
-                .map_err(|_| format!("`{p}` is not a number"))
-        })
-        .collect::<Result<_, _>>()?;
-    match parts.as_slice() {
-        [x, y, z] => Ok(Vector3::new(*x, *y, *z)),
-        _ => Err(format!("expected three comma-separated numbers, got `{s}`")),
-    }
 }
 
 pub fn run(cmd: SimCommand) -> anyhow::Result<()> {
@@ -71,11 +47,10 @@ struct PushJson {
 }
 
 fn push(args: PushArgs) -> anyhow::Result<()> {
-    let tree = urdf::read_file(&args.tree)
-        .with_context(|| format!("cannot load tree {}", args.tree.display()))?;
+    let tree = args.target.load_tree()?;
     let push = Push {
-        node: args.node,
-        vector: args.push,
+        node: args.target.node,
+        vector: args.target.push,
     };
     let config = SimConfig {
         contact: args.contact,
