@@ -6,7 +6,7 @@ use std::net::TcpStream;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use serde_json::Value;
+use serde_json::{Value, json};
 
 struct Server {
     child: Child,
@@ -33,29 +33,55 @@ impl Server {
         Self { child, addr }
     }
 
-    /// A plain HTTP/1.1 GET; returns status and parsed JSON body.
-    fn get(&self, path: &str) -> (u16, Value) {
+    /// Sends one HTTP/1.1 request; returns status, lower-cased headers and body.
+    fn raw(
+        &self,
+        method: &str,
+        path: &str,
+        content_type: &str,
+        body: &[u8],
+    ) -> (u16, String, String) {
         let mut stream = TcpStream::connect(&self.addr).unwrap();
         stream
-            .set_read_timeout(Some(Duration::from_secs(10)))
+            .set_read_timeout(Some(Duration::from_secs(30)))
             .unwrap();
         write!(
             stream,
-            "GET {path} HTTP/1.1\r\nHost: test\r\nConnection: close\r\n\r\n"
+            "{method} {path} HTTP/1.1\r\nHost: test\r\nConnection: close\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\n\r\n",
+            body.len()
         )
         .unwrap();
-        let mut response = String::new();
-        stream.read_to_string(&mut response).unwrap();
+        // The server may answer (413) before it has read a large body.
+        let _ = stream.write_all(body);
+        let mut response = Vec::new();
+        let _ = stream.read_to_end(&mut response);
+        let response = String::from_utf8_lossy(&response).into_owned();
         let (head, body) = response.split_once("\r\n\r\n").expect("header/body split");
         let status = head.split_whitespace().nth(1).unwrap().parse().unwrap();
-        assert!(
-            head.to_ascii_lowercase()
-                .contains("content-type: application/json"),
-            "{head}"
-        );
+        (status, head.to_ascii_lowercase(), body.to_owned())
+    }
+
+    /// A GET expecting JSON.
+    fn get(&self, path: &str) -> (u16, Value) {
+        self.send("GET", path, "application/json", b"")
+    }
+
+    /// A request with a JSON body, expecting a JSON answer.
+    fn json(&self, method: &str, path: &str, body: &Value) -> (u16, Value) {
+        self.send(
+            method,
+            path,
+            "application/json",
+            &serde_json::to_vec(body).unwrap(),
+        )
+    }
+
+    fn send(&self, method: &str, path: &str, content_type: &str, body: &[u8]) -> (u16, Value) {
+        let (status, head, body) = self.raw(method, path, content_type, body);
+        assert!(head.contains("content-type: application/json"), "{head}");
         (
             status,
-            serde_json::from_str(body).unwrap_or_else(|e| panic!("{e}: {body}")),
+            serde_json::from_str(&body).unwrap_or_else(|e| panic!("{e}: {body}")),
         )
     }
 }
@@ -118,4 +144,207 @@ fn sigterm_shuts_down_cleanly() {
         );
         std::thread::sleep(Duration::from_millis(20));
     }
+}
+
+/// A 4-node tree: trunk 0 → 1 → 2 and a side branch 1 → 3.
+fn tree_json() -> Value {
+    json!({
+        "positions": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.4], [0.02, 0.0, 0.8], [0.25, 0.05, 0.55]],
+        "parents": [null, 0, 1, 1],
+        "radius": [null, 0.015, 0.008, 0.006]
+    })
+}
+
+fn simulate_body(tree: Value) -> Value {
+    json!({ "tree": tree, "contact_node": 3, "push": [0.0, 0.03, 0.0] })
+}
+
+#[test]
+fn simulate_answers_with_the_simulators_ground_truth() {
+    let server = Server::start();
+    let (status, body) = server.json("POST", "/v1/simulate", &simulate_body(tree_json()));
+    assert_eq!(status, 200, "{body}");
+    let finals = body["final_positions"].as_array().unwrap();
+    assert_eq!(finals.len(), 4);
+    assert_eq!(finals[0], json!([0.0, 0.0, 0.0]), "the root stays");
+    assert!(body["solver"]["kkt_residual"].as_f64().unwrap() < 1e-8);
+    assert_eq!(body["contact"], "slot");
+    // The same push through the library gives the same numbers.
+    let tree = serde_json::from_value::<treemanip::api::tree_json::TreeJson>(tree_json())
+        .unwrap()
+        .to_tree(64)
+        .unwrap();
+    let out = treemanip::sim::simulate(
+        &tree,
+        &treemanip::sim::Push {
+            node: 3,
+            vector: nalgebra::Vector3::new(0.0, 0.03, 0.0),
+        },
+        &treemanip::sim::SimConfig::default(),
+    )
+    .unwrap();
+    for (j, p) in out.final_positions.iter().enumerate() {
+        for k in 0..3 {
+            assert_eq!(finals[j][k].as_f64().unwrap(), p[k]);
+        }
+        let d = body["displacements"][j][0].as_f64().unwrap();
+        assert_eq!(d, p.x - tree.position(j).x);
+    }
+    // Pinned contact on request.
+    let mut pinned = simulate_body(tree_json());
+    pinned["contact"] = json!("pinned");
+    let (status, body) = server.json("POST", "/v1/simulate", &pinned);
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["solver"]["hold"], "at_node");
+}
+
+fn expect_error(server: &Server, body: &Value, status: u16, code: &str) -> Value {
+    let (got, answer) = server.json("POST", "/v1/simulate", body);
+    assert_eq!(got, status, "{answer}");
+    assert_eq!(answer["error"]["code"], code, "{answer}");
+    assert!(!answer["error"]["message"].as_str().unwrap().is_empty());
+    answer["error"].clone()
+}
+
+#[test]
+fn every_error_class_has_its_status_and_shape() {
+    let server = Server::start();
+    // 400: not JSON, NaN, wrong shape, unknown field.
+    let (status, body) = server.send("POST", "/v1/simulate", "application/json", b"{\"tree\": ");
+    assert_eq!(
+        (status, body["error"]["code"].as_str()),
+        (400, Some("malformed_json"))
+    );
+    let nan = br#"{"tree": {"positions": [[0,0,NaN]], "parents": [null], "radius": [null]}, "contact_node": 1, "push": [0,0,0]}"#;
+    let (status, body) = server.send("POST", "/v1/simulate", "application/json", nan);
+    assert_eq!(status, 400);
+    assert!(
+        body["error"]["message"].as_str().unwrap().contains("NaN"),
+        "{body}"
+    );
+    let mut wrong = simulate_body(tree_json());
+    wrong["contact_node"] = json!("three");
+    expect_error(&server, &wrong, 400, "malformed_json");
+    let mut extra = simulate_body(tree_json());
+    extra["tree"]["colour"] = json!("green");
+    let error = expect_error(&server, &extra, 400, "malformed_json");
+    assert!(
+        error["message"].as_str().unwrap().contains("colour"),
+        "{error}"
+    );
+    // 415: not JSON.
+    let (status, body) = server.send("POST", "/v1/simulate", "text/plain", b"{}");
+    assert_eq!(
+        (status, body["error"]["code"].as_str()),
+        (415, Some("unsupported_media_type"))
+    );
+    // 413: a body over 1 MiB, a tree over 64 nodes.
+    let (status, body) = server.send(
+        "POST",
+        "/v1/simulate",
+        "application/json",
+        &vec![b' '; 2 << 20],
+    );
+    assert_eq!(
+        (status, body["error"]["code"].as_str()),
+        (413, Some("too_large")),
+        "{body}"
+    );
+    let big = json!({
+        "positions": (0..65).map(|k| [0.0, 0.0, k as f64 * 0.1]).collect::<Vec<_>>(),
+        "parents": (0..65).map(|k: usize| k.checked_sub(1)).collect::<Vec<_>>(),
+        "radius": (0..65).map(|k| if k == 0 { None } else { Some(0.01) }).collect::<Vec<_>>(),
+    });
+    let error = expect_error(&server, &simulate_body(big), 413, "too_large");
+    assert_eq!(error["details"]["max_nodes"], 64);
+    // 422: invalid trees, each naming field and node.
+    let mut cycle = tree_json();
+    cycle["parents"] = json!([null, 2, 1, 1]);
+    let error = expect_error(&server, &simulate_body(cycle), 422, "invalid_tree");
+    assert_eq!(error["details"]["field"], "parents");
+    assert!(error["message"].as_str().unwrap().contains("cycle"));
+    let mut two_roots = tree_json();
+    two_roots["parents"] = json!([null, 0, null, 1]);
+    let error = expect_error(&server, &simulate_body(two_roots), 422, "invalid_tree");
+    assert_eq!(error["details"]["nodes"], json!([0, 2]));
+    let mut out_of_range = tree_json();
+    out_of_range["parents"] = json!([null, 0, 7, 1]);
+    let error = expect_error(&server, &simulate_body(out_of_range), 422, "invalid_tree");
+    assert_eq!(error["details"]["node"], 2);
+    let mut short = tree_json();
+    short["radius"] = json!([null, 0.01, 0.01]);
+    let error = expect_error(&server, &simulate_body(short), 422, "invalid_tree");
+    assert_eq!(error["details"]["field"], "radius");
+    let mut negative = tree_json();
+    negative["radius"][2] = json!(-0.01);
+    let error = expect_error(&server, &simulate_body(negative), 422, "invalid_tree");
+    assert_eq!(
+        (
+            error["details"]["field"].as_str(),
+            error["details"]["node"].as_u64()
+        ),
+        (Some("radius"), Some(2))
+    );
+    let mut two_d = tree_json();
+    two_d["positions"][1] = json!([0.0, 0.4]);
+    let error = expect_error(&server, &simulate_body(two_d), 422, "invalid_tree");
+    assert_eq!(error["details"]["node"], 1);
+    let mut huge = tree_json();
+    huge["positions"][3] = json!([1e308, 1e308, 1e308]);
+    let error = expect_error(&server, &simulate_body(huge), 422, "invalid_tree");
+    assert_eq!(error["details"]["node"], 3, "{error}");
+    // 422: bad arguments, and pushes the physics rejects.
+    let mut root = simulate_body(tree_json());
+    root["contact_node"] = json!(0);
+    let error = expect_error(&server, &root, 422, "invalid_argument");
+    assert_eq!(error["details"]["field"], "contact_node");
+    let mut two = simulate_body(tree_json());
+    two["push"] = json!([0.0, 0.1]);
+    expect_error(&server, &two, 422, "invalid_argument");
+    let mut far = simulate_body(tree_json());
+    far["push"] = json!([0.0, 0.2, 0.0]);
+    let error = expect_error(&server, &far, 422, "push_infeasible");
+    assert_eq!(error["details"]["kind"], "lost_branch");
+    // 405 and 404.
+    let (status, body) = server.get("/v1/simulate");
+    assert_eq!(
+        (status, body["error"]["code"].as_str()),
+        (405, Some("method_not_allowed"))
+    );
+    // The process survived all of it.
+    assert_eq!(server.get("/healthz").0, 200);
+}
+
+#[test]
+fn metrics_count_requests_and_the_spec_is_served() {
+    let server = Server::start();
+    let count = |text: &str| -> f64 {
+        text.lines()
+            .filter(|l| {
+                l.starts_with("treemanip_http_requests_total")
+                    && l.contains("route=\"/v1/simulate\"")
+                    && l.contains("status=\"200\"")
+            })
+            .filter_map(|l| l.rsplit(' ').next()?.parse::<f64>().ok())
+            .sum()
+    };
+    let metrics = || server.raw("GET", "/metrics", "text/plain", b"").2;
+    let before = count(&metrics());
+    for _ in 0..3 {
+        assert_eq!(
+            server
+                .json("POST", "/v1/simulate", &simulate_body(tree_json()))
+                .0,
+            200
+        );
+    }
+    let after = metrics();
+    assert_eq!(count(&after) - before, 3.0, "{after}");
+    assert!(after.contains("treemanip_http_request_duration_seconds_bucket"));
+    assert!(after.contains("treemanip_compute_seconds"));
+    let (status, head, spec) = server.raw("GET", "/openapi.yaml", "text/plain", b"");
+    assert_eq!(status, 200);
+    assert!(head.contains("application/yaml"));
+    assert!(spec.starts_with("openapi: 3.1.0"));
+    assert!(spec.contains("/v1/simulate:"));
 }

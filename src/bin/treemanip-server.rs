@@ -4,7 +4,7 @@ use std::net::SocketAddr;
 
 use clap::{Parser, ValueEnum};
 use tokio::net::TcpListener;
-use treemanip::api::{self, AppState};
+use treemanip::api::{self, AppState, Limits};
 
 #[derive(Parser)]
 #[command(
@@ -16,6 +16,18 @@ struct Args {
     /// Address to listen on (port 0 picks a free port).
     #[arg(long, env = "TREEMANIP_BIND", default_value = "127.0.0.1:8080")]
     bind: SocketAddr,
+    /// Largest tree accepted (nodes, at most 64).
+    #[arg(long, env = "TREEMANIP_MAX_NODES", default_value_t = treemanip::tree::MAX_NODES)]
+    max_nodes: usize,
+    /// Largest request body (bytes).
+    #[arg(long, env = "TREEMANIP_MAX_BODY_BYTES", default_value_t = 1 << 20)]
+    max_body_bytes: usize,
+    /// CPU jobs admitted at once (running or queued); more are answered 503.
+    #[arg(long, env = "TREEMANIP_MAX_IN_FLIGHT")]
+    max_in_flight: Option<usize>,
+    /// Time budget of one request (seconds); past it the answer is 504.
+    #[arg(long, env = "TREEMANIP_REQUEST_TIMEOUT", default_value_t = 10.0)]
+    request_timeout: f64,
     /// Log format.
     #[arg(long, env = "TREEMANIP_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
     log_format: LogFormat,
@@ -49,7 +61,25 @@ async fn main() -> anyhow::Result<()> {
     // One machine-readable line on stdout for scripts and tests.
     println!("listening on http://{addr}");
 
-    axum::serve(listener, api::router(AppState::default()))
+    if !(2..=treemanip::tree::MAX_NODES).contains(&args.max_nodes) {
+        anyhow::bail!(
+            "--max-nodes must be between 2 and {}",
+            treemanip::tree::MAX_NODES
+        );
+    }
+    if !(args.request_timeout.is_finite() && args.request_timeout > 0.0) {
+        anyhow::bail!("--request-timeout must be a positive number of seconds");
+    }
+    let defaults = Limits::default();
+    let limits = Limits {
+        max_nodes: args.max_nodes,
+        max_body_bytes: args.max_body_bytes,
+        max_in_flight: args.max_in_flight.unwrap_or(defaults.max_in_flight).max(1),
+        request_timeout: std::time::Duration::from_secs_f64(args.request_timeout),
+    };
+    let app =
+        api::router(AppState::new(limits)).layer(tower_http::trace::TraceLayer::new_for_http());
+    axum::serve(listener, app)
         .with_graceful_shutdown(shutdown_signal())
         .await?;
     tracing::info!("shut down cleanly");
