@@ -9,6 +9,8 @@ pub mod api;
 pub mod dataset;
 pub mod eval;
 pub mod graph;
+pub mod infer;
+pub mod nn;
 pub mod robot;
 pub mod seed;
 pub mod sim;

@@ -1,0 +1,168 @@
+//! Running exported ONNX models through `ort`.
+//!
+//! [`init_backend`] is called once per process: with a path to ONNX
+//! Runtime's shared library (`--ort-dylib` / `ORT_DYLIB_PATH`) that loads,
+//! ort runs on native ONNX Runtime; otherwise on tract (pure Rust, always
+//! available), with a logged notice. ort is never left to load a library
+//! on its own, which would panic when none is installed.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use ort::session::Session;
+use ort::value::TensorRef;
+use serde::Serialize;
+
+use crate::graph::{Batch, EDGE_DIM};
+use crate::nn::gnn::GnnOutput;
+
+/// Which ONNX engine this process runs on.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Backend {
+    /// Native ONNX Runtime, loaded from this library.
+    OnnxRuntime { library: PathBuf },
+    /// tract, compiled in.
+    Tract,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum InferError {
+    #[error("ONNX backend: {0}")]
+    Backend(String),
+    #[error("cannot load the model: {0}")]
+    Load(String),
+    #[error("inference failed: {0}")]
+    Run(String),
+}
+
+struct Engine {
+    backend: Backend,
+    environment: ort::environment::Environment,
+}
+
+static ENGINE: OnceLock<Engine> = OnceLock::new();
+
+/// Sets up the ONNX engine once; later calls return the first choice.
+/// `library` (or else `ORT_DYLIB_PATH`) names ONNX Runtime's shared library.
+pub fn init_backend(library: Option<&Path>) -> Result<Backend, InferError> {
+    if let Some(engine) = ENGINE.get() {
+        return Ok(engine.backend.clone());
+    }
+    let requested = library
+        .map(Path::to_path_buf)
+        .or_else(|| std::env::var_os("ORT_DYLIB_PATH").map(PathBuf::from));
+    let native = requested.as_ref().and_then(|path| {
+        if !path.is_file() {
+            tracing::warn!(library = %path.display(), "ONNX Runtime library not found; using tract");
+            return None;
+        }
+        match ort::init_from(path) {
+            Ok(builder) => builder.build().ok().map(|env| (path.clone(), env)),
+            Err(e) => {
+                tracing::warn!(library = %path.display(), error = %e, "cannot load ONNX Runtime; using tract");
+                None
+            }
+        }
+    });
+    let engine = match native {
+        Some((library, environment)) => Engine {
+            backend: Backend::OnnxRuntime { library },
+            environment,
+        },
+        None => {
+            if requested.is_none() {
+                tracing::info!("no ONNX Runtime library given; running models on tract");
+            }
+            ort::set_api(ort_tract::api());
+            let environment = ort::init()
+                .build()
+                .map_err(|e| InferError::Backend(e.to_string()))?;
+            Engine {
+                backend: Backend::Tract,
+                environment,
+            }
+        }
+    };
+    Ok(ENGINE.get_or_init(|| engine).backend.clone())
+}
+
+/// One loaded model.
+pub struct OnnxModel {
+    session: Session,
+    has_global: bool,
+    has_affordance: bool,
+    /// The model's `metadata_props`.
+    pub metadata: Vec<(String, String)>,
+}
+
+impl OnnxModel {
+    /// Loads a model from ONNX bytes (initialising the backend with its
+    /// defaults first if needed).
+    pub fn from_bytes(bytes: &[u8], metadata: Vec<(String, String)>) -> Result<Self, InferError> {
+        init_backend(None)?;
+        let engine = ENGINE.get().expect("initialised above");
+        let session = Session::builder(&engine.environment)
+            .and_then(|mut b| b.commit_from_memory(bytes))
+            .map_err(|e| InferError::Load(e.to_string()))?;
+        let names: Vec<String> = session
+            .inputs()
+            .iter()
+            .map(|i| i.name().to_owned())
+            .collect();
+        let outputs: Vec<String> = session
+            .outputs()
+            .iter()
+            .map(|o| o.name().to_owned())
+            .collect();
+        Ok(Self {
+            has_global: names.iter().any(|n| n == "global"),
+            has_affordance: outputs.iter().any(|n| n == "affordance"),
+            session,
+            metadata,
+        })
+    }
+
+    /// Runs the model on a batch.
+    pub fn run(&mut self, batch: &Batch) -> Result<GnnOutput, InferError> {
+        let (b, n) = (batch.batch, batch.n);
+        let nd = batch.task.node_dim();
+        let run = |e: ort::Error| InferError::Run(e.to_string());
+        let nodes =
+            TensorRef::from_array_view(([b, n, nd], batch.nodes.as_slice())).map_err(run)?;
+        let edges = TensorRef::from_array_view(([b, n, n, EDGE_DIM], batch.edges.as_slice()))
+            .map_err(run)?;
+        let mask = TensorRef::from_array_view(([b, n], batch.mask.as_slice())).map_err(run)?;
+        let outputs = if self.has_global {
+            let global =
+                TensorRef::from_array_view(([b, 3], batch.global.as_slice())).map_err(run)?;
+            self.session
+                .run(ort::inputs!["nodes" => nodes, "edges" => edges, "global" => global, "mask" => mask])
+                .map_err(run)?
+        } else {
+            self.session
+                .run(ort::inputs!["nodes" => nodes, "edges" => edges, "mask" => mask])
+                .map_err(run)?
+        };
+        let vector_name = if self.has_affordance {
+            "action"
+        } else {
+            "displacement"
+        };
+        let (_, vectors) = outputs[vector_name]
+            .try_extract_tensor::<f32>()
+            .map_err(run)?;
+        let affordance = if self.has_affordance {
+            let (_, a) = outputs["affordance"]
+                .try_extract_tensor::<f32>()
+                .map_err(run)?;
+            Some(a.to_vec())
+        } else {
+            None
+        };
+        Ok(GnnOutput {
+            vectors: vectors.to_vec(),
+            affordance,
+        })
+    }
+}

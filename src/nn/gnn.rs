@@ -1,0 +1,281 @@
+//! The paper's GNN as plain weights, and a straightforward reference
+//! forward pass over dense batches.
+//!
+//! Architecture (Sanchez-Gonzalez et al. graph2graph, as in the paper):
+//! encoders turn normalised node, edge (and, for the forward model, global)
+//! attributes into H-dimensional embeddings; each of the L layers computes
+//! e*_ij = f_e(g, n_i, n_j, e_ij), aggregates ê_j = Σ_i e*_ij over the real
+//! senders i ≠ j, computes n*_j = f_n(g, n_j, ê_j), and adds both as
+//! residuals; heads read the node embeddings. Every MLP has three linear
+//! layers with ReLU between them.
+//!
+//! The reference pass evaluates f_e on the concatenated inputs edge by edge,
+//! deliberately unlike the exported ONNX graph (which splits the first layer
+//! of f_e by input), so the two check each other.
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::graph::{Batch, EDGE_DIM, FeatureStats, Task};
+
+/// y = W x + b, W stored row-major as out × in.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Linear {
+    pub inputs: usize,
+    pub outputs: usize,
+    pub weight: Vec<f32>,
+    pub bias: Vec<f32>,
+}
+
+impl Linear {
+    /// Glorot-uniform weights, zero bias.
+    pub fn random(inputs: usize, outputs: usize, rng: &mut ChaCha8Rng) -> Self {
+        let limit = (6.0 / (inputs + outputs) as f64).sqrt();
+        Self {
+            inputs,
+            outputs,
+            weight: (0..inputs * outputs)
+                .map(|_| rng.random_range(-limit..limit) as f32)
+                .collect(),
+            bias: (0..outputs)
+                .map(|_| rng.random_range(-0.1..0.1) as f32)
+                .collect(),
+        }
+    }
+
+    pub fn apply(&self, x: &[f32], out: &mut [f32]) {
+        for (o, slot) in out.iter_mut().enumerate().take(self.outputs) {
+            let row = &self.weight[o * self.inputs..(o + 1) * self.inputs];
+            *slot = self.bias[o] + row.iter().zip(x).map(|(w, v)| w * v).sum::<f32>();
+        }
+    }
+}
+
+/// Linear → ReLU → Linear → ReLU → Linear.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Mlp {
+    pub layers: [Linear; 3],
+}
+
+impl Mlp {
+    pub fn random(inputs: usize, hidden: usize, outputs: usize, rng: &mut ChaCha8Rng) -> Self {
+        Self {
+            layers: [
+                Linear::random(inputs, hidden, rng),
+                Linear::random(hidden, hidden, rng),
+                Linear::random(hidden, outputs, rng),
+            ],
+        }
+    }
+
+    pub fn apply(&self, x: &[f32]) -> Vec<f32> {
+        let mut a = vec![0.0; self.layers[0].outputs];
+        self.layers[0].apply(x, &mut a);
+        a.iter_mut().for_each(|v| *v = v.max(0.0));
+        let mut b = vec![0.0; self.layers[1].outputs];
+        self.layers[1].apply(&a, &mut b);
+        b.iter_mut().for_each(|v| *v = v.max(0.0));
+        let mut c = vec![0.0; self.layers[2].outputs];
+        self.layers[2].apply(&b, &mut c);
+        c
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GnnConfig {
+    pub task: Task,
+    /// Embedding width H (the paper: 128).
+    pub hidden: usize,
+    /// graph2graph layers L (the paper: 5).
+    pub layers: usize,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Block {
+    /// f_e on [g, n_i, n_j, e_ij].
+    pub edge: Mlp,
+    /// f_n on [g, n_j, ê_j].
+    pub node: Mlp,
+}
+
+/// Everything needed to run (or export) one model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GnnWeights {
+    pub config: GnnConfig,
+    /// Input normalisation.
+    pub stats: FeatureStats,
+    /// Output de-normalisation of the 3-vector head (Δp or T): y·std + mean.
+    pub output_mean: [f64; 3],
+    pub output_std: [f64; 3],
+    pub node_encoder: Mlp,
+    pub edge_encoder: Mlp,
+    /// Forward model only.
+    pub global_encoder: Option<Mlp>,
+    pub blocks: Vec<Block>,
+    /// Δp (forward) or the per-node push T (policy).
+    pub vector_head: Mlp,
+    /// Policy only: one affordance logit per node.
+    pub affordance_head: Option<Mlp>,
+}
+
+impl GnnWeights {
+    /// Randomly initialised weights (for tests and as a training start).
+    pub fn random(config: GnnConfig, stats: FeatureStats, seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let h = config.hidden;
+        let task = config.task;
+        let hg = if task.global_dim() > 0 { h } else { 0 };
+        let node_encoder = Mlp::random(task.node_dim(), h, h, &mut rng);
+        let edge_encoder = Mlp::random(EDGE_DIM, h, h, &mut rng);
+        let global_encoder =
+            (task.global_dim() > 0).then(|| Mlp::random(task.global_dim(), h, h, &mut rng));
+        let blocks = (0..config.layers)
+            .map(|_| Block {
+                edge: Mlp::random(hg + 3 * h, h, h, &mut rng),
+                node: Mlp::random(hg + 2 * h, h, h, &mut rng),
+            })
+            .collect();
+        let vector_head = Mlp::random(h, h, 3, &mut rng);
+        let affordance_head = (task == Task::Policy).then(|| Mlp::random(h, h, 1, &mut rng));
+        Self {
+            config,
+            stats,
+            output_mean: [0.0; 3],
+            output_std: [1.0; 3],
+            node_encoder,
+            edge_encoder,
+            global_encoder,
+            blocks,
+            vector_head,
+            affordance_head,
+        }
+    }
+}
+
+/// What a model returns for a batch (B × N × …, padded nodes included).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GnnOutput {
+    /// B × N × 3: Δp (forward) or T_j (policy), SI units.
+    pub vectors: Vec<f32>,
+    /// Policy: B × N affordances, each graph's real nodes summing to 1.
+    pub affordance: Option<Vec<f32>>,
+}
+
+fn normalise(values: &[f32], mean: &[f64], std: &[f64]) -> Vec<f32> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(k, v)| ((*v as f64 - mean[k % mean.len()]) / std[k % std.len()]) as f32)
+        .collect()
+}
+
+/// The reference forward pass.
+pub fn forward(weights: &GnnWeights, batch: &Batch) -> GnnOutput {
+    let task = weights.config.task;
+    assert_eq!(batch.task, task, "batch and model tasks differ");
+    let (b, n, h) = (batch.batch, batch.n, weights.config.hidden);
+    let (nd, gd) = (task.node_dim(), task.global_dim());
+    let s = &weights.stats;
+    let nodes = normalise(&batch.nodes, &s.node_mean, &s.node_std);
+    let edges = normalise(&batch.edges, &s.edge_mean, &s.edge_std);
+    let global = if gd > 0 {
+        normalise(&batch.global, &s.global_mean, &s.global_std)
+    } else {
+        Vec::new()
+    };
+
+    let mut hn = vec![0.0f32; b * n * h];
+    let mut he = vec![0.0f32; b * n * n * h];
+    let mut hg = vec![0.0f32; b * h];
+    for g in 0..b {
+        for j in 0..n {
+            let x = &nodes[(g * n + j) * nd..(g * n + j + 1) * nd];
+            hn[(g * n + j) * h..(g * n + j + 1) * h]
+                .copy_from_slice(&weights.node_encoder.apply(x));
+            for i in 0..n {
+                let k = (g * n + i) * n + j;
+                let x = &edges[k * EDGE_DIM..(k + 1) * EDGE_DIM];
+                he[k * h..(k + 1) * h].copy_from_slice(&weights.edge_encoder.apply(x));
+            }
+        }
+        if let Some(enc) = &weights.global_encoder {
+            hg[g * h..(g + 1) * h].copy_from_slice(&enc.apply(&global[g * gd..(g + 1) * gd]));
+        }
+    }
+    let use_global = weights.global_encoder.is_some();
+    for block in &weights.blocks {
+        let mut new_e = vec![0.0f32; b * n * n * h];
+        let mut agg = vec![0.0f32; b * n * h];
+        for g in 0..b {
+            for i in 0..n {
+                for j in 0..n {
+                    let k = (g * n + i) * n + j;
+                    let mut x = Vec::with_capacity(4 * h);
+                    if use_global {
+                        x.extend_from_slice(&hg[g * h..(g + 1) * h]);
+                    }
+                    x.extend_from_slice(&hn[(g * n + i) * h..(g * n + i + 1) * h]);
+                    x.extend_from_slice(&hn[(g * n + j) * h..(g * n + j + 1) * h]);
+                    x.extend_from_slice(&he[k * h..(k + 1) * h]);
+                    let e = block.edge.apply(&x);
+                    let real = i != j && batch.mask[g * n + i] > 0.0 && batch.mask[g * n + j] > 0.0;
+                    if real {
+                        for c in 0..h {
+                            agg[(g * n + j) * h + c] += e[c];
+                        }
+                    }
+                    new_e[k * h..(k + 1) * h].copy_from_slice(&e);
+                }
+            }
+        }
+        let mut new_n = vec![0.0f32; b * n * h];
+        for g in 0..b {
+            for j in 0..n {
+                let mut x = Vec::with_capacity(3 * h);
+                if use_global {
+                    x.extend_from_slice(&hg[g * h..(g + 1) * h]);
+                }
+                x.extend_from_slice(&hn[(g * n + j) * h..(g * n + j + 1) * h]);
+                x.extend_from_slice(&agg[(g * n + j) * h..(g * n + j + 1) * h]);
+                new_n[(g * n + j) * h..(g * n + j + 1) * h].copy_from_slice(&block.node.apply(&x));
+            }
+        }
+        hn.iter_mut().zip(&new_n).for_each(|(a, d)| *a += d);
+        he.iter_mut().zip(&new_e).for_each(|(a, d)| *a += d);
+    }
+    let mut vectors = vec![0.0f32; b * n * 3];
+    let mut logits = vec![0.0f32; b * n];
+    for g in 0..b {
+        for j in 0..n {
+            let x = &hn[(g * n + j) * h..(g * n + j + 1) * h];
+            let y = weights.vector_head.apply(x);
+            for c in 0..3 {
+                vectors[(g * n + j) * 3 + c] =
+                    (y[c] as f64 * weights.output_std[c] + weights.output_mean[c]) as f32;
+            }
+            if let Some(head) = &weights.affordance_head {
+                logits[g * n + j] = head.apply(x)[0];
+            }
+        }
+    }
+    let affordance = weights.affordance_head.as_ref().map(|_| {
+        let mut out = vec![0.0f32; b * n];
+        for g in 0..b {
+            let real: Vec<usize> = (0..n).filter(|&j| batch.mask[g * n + j] > 0.0).collect();
+            let max = real
+                .iter()
+                .map(|&j| logits[g * n + j])
+                .fold(f32::NEG_INFINITY, f32::max);
+            let sum: f32 = real.iter().map(|&j| (logits[g * n + j] - max).exp()).sum();
+            for &j in &real {
+                out[g * n + j] = (logits[g * n + j] - max).exp() / sum;
+            }
+        }
+        out
+    });
+    GnnOutput {
+        vectors,
+        affordance,
+    }
+}
