@@ -5,6 +5,8 @@ use clap::{Args, Subcommand};
 use serde::Serialize;
 use treemanip::sim::{ContactModel, Push, SimConfig, SolverReport, simulate};
 
+use treemanip::api::tree_json::TreeJson;
+
 use crate::args::TreePush;
 
 #[derive(Subcommand)]
@@ -34,10 +36,9 @@ pub fn run(cmd: SimCommand) -> anyhow::Result<()> {
 
 #[derive(Serialize)]
 struct PushJson {
-    positions: Vec<[f64; 3]>,
-    parents: Vec<Option<usize>>,
-    radius: Vec<Option<f64>>,
-    stiffness: Vec<Option<f64>>,
+    /// The tree in the HTTP API's format (positions, parents, radius, stiffness).
+    #[serde(flatten)]
+    tree: TreeJson,
     contact_node: usize,
     push: [f64; 3],
     contact_model: ContactModel,
@@ -60,18 +61,7 @@ fn push(args: PushArgs) -> anyhow::Result<()> {
     let xyz = |p: &nalgebra::Point3<f64>| [p.x, p.y, p.z];
     if args.json {
         let json = PushJson {
-            positions: tree.positions().iter().map(xyz).collect(),
-            parents: tree.parents().to_vec(),
-            radius: tree
-                .branches()
-                .iter()
-                .map(|b| b.map(|b| b.radius))
-                .collect(),
-            stiffness: tree
-                .branches()
-                .iter()
-                .map(|b| b.map(|b| b.stiffness))
-                .collect(),
+            tree: TreeJson::from_tree(&tree),
             contact_node: push.node,
             push: [push.vector.x, push.vector.y, push.vector.z],
             contact_model: args.contact,
