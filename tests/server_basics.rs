@@ -348,3 +348,56 @@ fn metrics_count_requests_and_the_spec_is_served() {
     assert!(spec.starts_with("openapi: 3.1.0"));
     assert!(spec.contains("/v1/simulate:"));
 }
+
+#[test]
+fn sigterm_lets_an_in_flight_request_finish() {
+    let mut server = Server::start();
+    let body = serde_json::to_vec(&simulate_body(tree_json())).unwrap();
+    let (first, rest) = body.split_at(body.len() / 2);
+    let mut stream = TcpStream::connect(&server.addr).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(30)))
+        .unwrap();
+    write!(
+        stream,
+        "POST /v1/simulate HTTP/1.1\r\nHost: test\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n",
+        body.len()
+    )
+    .unwrap();
+    stream.write_all(first).unwrap();
+    stream.flush().unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    // The request is half received when the signal arrives.
+    let pid = server.child.id().to_string();
+    assert!(
+        Command::new("kill")
+            .args(["-TERM", &pid])
+            .status()
+            .unwrap()
+            .success()
+    );
+    std::thread::sleep(Duration::from_millis(200));
+    assert!(
+        server.child.try_wait().unwrap().is_none(),
+        "the server quit with a request in flight"
+    );
+    stream.write_all(rest).unwrap();
+    let mut response = String::new();
+    stream.read_to_string(&mut response).unwrap();
+    assert!(response.starts_with("HTTP/1.1 200"), "{response}");
+    assert!(response.contains("final_positions"));
+    // Then it exits cleanly, and takes no new connections.
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    loop {
+        if let Some(status) = server.child.try_wait().unwrap() {
+            assert!(status.success(), "exit status {status}");
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "server did not exit after the request"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(TcpStream::connect(&server.addr).is_err());
+}
