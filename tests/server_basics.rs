@@ -86,6 +86,32 @@ impl Server {
     }
 }
 
+impl Server {
+    fn terminate(&self) {
+        let pid = self.child.id().to_string();
+        assert!(
+            Command::new("kill")
+                .args(["-TERM", &pid])
+                .status()
+                .unwrap()
+                .success()
+        );
+    }
+
+    /// Waits (up to 10 s) for the process to exit, and asserts it exited 0.
+    fn wait_for_clean_exit(&mut self, what: &str) {
+        let deadline = std::time::Instant::now() + Duration::from_secs(10);
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                assert!(status.success(), "exit status {status}");
+                return;
+            }
+            assert!(std::time::Instant::now() < deadline, "{what}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
 impl Drop for Server {
     fn drop(&mut self) {
         let _ = self.child.kill();
@@ -124,26 +150,8 @@ fn process_endpoints_and_error_shape() {
 fn sigterm_shuts_down_cleanly() {
     let mut server = Server::start();
     assert_eq!(server.get("/healthz").0, 200);
-    let pid = server.child.id().to_string();
-    assert!(
-        Command::new("kill")
-            .args(["-TERM", &pid])
-            .status()
-            .unwrap()
-            .success()
-    );
-    let deadline = std::time::Instant::now() + Duration::from_secs(10);
-    loop {
-        if let Some(status) = server.child.try_wait().unwrap() {
-            assert!(status.success(), "exit status {status}");
-            break;
-        }
-        assert!(
-            std::time::Instant::now() < deadline,
-            "server ignored SIGTERM"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    server.terminate();
+    server.wait_for_clean_exit("server ignored SIGTERM");
 }
 
 /// A 4-node tree: trunk 0 → 1 → 2 and a side branch 1 → 3.
@@ -368,14 +376,7 @@ fn sigterm_lets_an_in_flight_request_finish() {
     stream.flush().unwrap();
     std::thread::sleep(Duration::from_millis(200));
     // The request is half received when the signal arrives.
-    let pid = server.child.id().to_string();
-    assert!(
-        Command::new("kill")
-            .args(["-TERM", &pid])
-            .status()
-            .unwrap()
-            .success()
-    );
+    server.terminate();
     std::thread::sleep(Duration::from_millis(200));
     assert!(
         server.child.try_wait().unwrap().is_none(),
@@ -387,17 +388,6 @@ fn sigterm_lets_an_in_flight_request_finish() {
     assert!(response.starts_with("HTTP/1.1 200"), "{response}");
     assert!(response.contains("final_positions"));
     // Then it exits cleanly, and takes no new connections.
-    let deadline = std::time::Instant::now() + Duration::from_secs(10);
-    loop {
-        if let Some(status) = server.child.try_wait().unwrap() {
-            assert!(status.success(), "exit status {status}");
-            break;
-        }
-        assert!(
-            std::time::Instant::now() < deadline,
-            "server did not exit after the request"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    server.wait_for_clean_exit("server did not exit after the request");
     assert!(TcpStream::connect(&server.addr).is_err());
 }

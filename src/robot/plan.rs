@@ -29,7 +29,7 @@
 
 use std::time::{Duration, Instant};
 
-use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
 use super::collision::{Allowed, CollisionModel, TreeObstacles};
@@ -373,9 +373,4 @@ fn push_line<'a>(
         line.push(next);
     }
     Some(line)
-}
-
-/// Tool position along a trajectory point (for drawings and checks).
-pub fn tool_position(model: &CollisionModel, q: &Config) -> Point3<f64> {
-    Point3::from(model.robot.tool_pose(q).translation.vector)
 }
