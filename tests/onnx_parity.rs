@@ -53,9 +53,9 @@ fn model(task: Task) -> GnnWeights {
     }
     let mut weights = GnnWeights::random(
         GnnConfig {
-            task,
             hidden: 16,
             layers: 3,
+            ..GnnConfig::paper(task)
         },
         stats.finish(),
         42,

@@ -1,4 +1,5 @@
 //! Evaluations the way the paper reports them, with tables and figures.
 
+pub mod learned;
 pub mod plan;
 pub mod plots;

@@ -49,3 +49,73 @@ pub fn rank_histogram_svg(
     root.present()?;
     Ok(())
 }
+
+/// e_N against N, one line per method (the paper's Fig. 7), in cm.
+pub fn error_by_size_svg(
+    scores: &[crate::eval::learned::Score],
+    title: &str,
+    trained: &[usize],
+    path: &Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let methods = crate::eval::learned::methods(scores);
+    let lo = scores.iter().map(|s| s.n).min().unwrap_or(10);
+    let hi = scores.iter().map(|s| s.n).max().unwrap_or(30);
+    let top = scores.iter().map(|s| s.error * 100.0).fold(1.0, f64::max) * 1.1;
+    let root = SVGBackend::new(path, (760, 460)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(lo as f64 - 0.5..hi as f64 + 0.5, 0.0..top)?;
+    chart
+        .configure_mesh()
+        .x_desc("tree size N (nodes); shaded = sizes seen in training")
+        .y_desc("e_N (cm)")
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .x_labels((hi - lo + 1).min(21))
+        .disable_x_mesh()
+        .draw()?;
+    for &n in trained {
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(n as f64 - 0.5, 0.0), (n as f64 + 0.5, top)],
+            RGBColor(235, 235, 235).filled(),
+        )))?;
+    }
+    let palette = [
+        RGBColor(58, 110, 165),
+        RGBColor(214, 96, 77),
+        RGBColor(90, 160, 90),
+        RGBColor(150, 100, 180),
+        RGBColor(120, 120, 120),
+    ];
+    for (k, method) in methods.iter().enumerate() {
+        let color = palette[k % palette.len()];
+        let mut points: Vec<(f64, f64)> = scores
+            .iter()
+            .filter(|s| &s.method == method)
+            .map(|s| (s.n as f64, s.error * 100.0))
+            .collect();
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        chart
+            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?
+            .label(method.as_str())
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+        chart.draw_series(
+            points
+                .iter()
+                .map(|&(x, y)| Circle::new((x, y), 3, color.filled())),
+        )?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}

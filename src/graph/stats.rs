@@ -29,14 +29,14 @@ pub struct FeatureStats {
 
 /// Welford's running mean and variance, per feature.
 #[derive(Debug, Clone)]
-struct Running {
+pub struct Running {
     count: f64,
     mean: Vec<f64>,
     m2: Vec<f64>,
 }
 
 impl Running {
-    fn new(dim: usize) -> Self {
+    pub fn new(dim: usize) -> Self {
         Self {
             count: 0.0,
             mean: vec![0.0; dim],
@@ -44,7 +44,7 @@ impl Running {
         }
     }
 
-    fn push(&mut self, values: &[f32]) {
+    pub fn push(&mut self, values: &[f32]) {
         self.count += 1.0;
         for (k, &v) in values.iter().enumerate() {
             let v = v as f64;
@@ -54,7 +54,8 @@ impl Running {
         }
     }
 
-    fn finish(&self) -> (Vec<f64>, Vec<f64>) {
+    /// (mean, std), with spreads below [`MIN_STD`] replaced by 1.
+    pub fn finish(&self) -> (Vec<f64>, Vec<f64>) {
         let std = self
             .m2
             .iter()

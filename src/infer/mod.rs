@@ -13,6 +13,8 @@ use ort::session::Session;
 use ort::value::TensorRef;
 use serde::Serialize;
 
+pub mod models;
+
 use crate::graph::{Batch, EDGE_DIM};
 use crate::nn::gnn::GnnOutput;
 
@@ -100,11 +102,29 @@ impl OnnxModel {
     /// Loads a model from ONNX bytes (initialising the backend with its
     /// defaults first if needed).
     pub fn from_bytes(bytes: &[u8], metadata: Vec<(String, String)>) -> Result<Self, InferError> {
+        Self::with_threads(bytes, metadata, None)
+    }
+
+    /// Like [`from_bytes`](Self::from_bytes); on native ONNX Runtime,
+    /// `intra_threads` caps the threads one inference uses (a server runs
+    /// one session per core instead).
+    pub fn with_threads(
+        bytes: &[u8],
+        metadata: Vec<(String, String)>,
+        intra_threads: Option<usize>,
+    ) -> Result<Self, InferError> {
         init_backend(None)?;
         let engine = ENGINE.get().expect("initialised above");
-        let session = Session::builder(&engine.environment)
-            .and_then(|mut b| b.commit_from_memory(bytes))
-            .map_err(|e| InferError::Load(e.to_string()))?;
+        let load = |e: String| InferError::Load(e);
+        let mut builder = Session::builder(&engine.environment).map_err(|e| load(e.to_string()))?;
+        if let (Some(threads), Backend::OnnxRuntime { .. }) = (intra_threads, &engine.backend) {
+            builder = builder
+                .with_intra_threads(threads)
+                .map_err(|e| load(e.to_string()))?;
+        }
+        let session = builder
+            .commit_from_memory(bytes)
+            .map_err(|e| load(e.to_string()))?;
         let names: Vec<String> = session
             .inputs()
             .iter()
@@ -165,4 +185,43 @@ impl OnnxModel {
             affordance,
         })
     }
+}
+
+impl OnnxModel {
+    /// Loads a model file, reading its `metadata_props`.
+    pub fn load(path: &std::path::Path) -> Result<Self, InferError> {
+        let bytes = std::fs::read(path)
+            .map_err(|e| InferError::Load(format!("reading {}: {e}", path.display())))?;
+        let metadata = read_metadata(&bytes)
+            .map_err(|e| InferError::Load(format!("{}: {e}", path.display())))?;
+        Self::from_bytes(&bytes, metadata)
+    }
+
+    /// The task the model's signature implies.
+    pub fn task(&self) -> crate::graph::Task {
+        if self.has_affordance {
+            crate::graph::Task::Policy
+        } else {
+            crate::graph::Task::Forward
+        }
+    }
+
+    /// One metadata value.
+    pub fn meta(&self, key: &str) -> Option<&str> {
+        self.metadata
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+}
+
+/// The `metadata_props` of an ONNX model.
+pub fn read_metadata(bytes: &[u8]) -> Result<Vec<(String, String)>, String> {
+    use prost::Message;
+    let model = tract_onnx::pb::ModelProto::decode(bytes).map_err(|e| e.to_string())?;
+    Ok(model
+        .metadata_props
+        .into_iter()
+        .map(|p| (p.key, p.value))
+        .collect())
 }

@@ -17,6 +17,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use super::input::gnn_input;
 use crate::graph::{Batch, EDGE_DIM, FeatureStats, Task};
 
 /// y = W x + b, W stored row-major as out × in.
@@ -89,6 +90,111 @@ pub struct GnnConfig {
     pub hidden: usize,
     /// graph2graph layers L (the paper: 5).
     pub layers: usize,
+    /// Which edge attributes the model sees (ablation; the paper: all).
+    #[serde(default)]
+    pub edge_attributes: EdgeAttributes,
+    /// Which node pairs exchange messages (ablation; the paper: full).
+    #[serde(default)]
+    pub connectivity: Connectivity,
+}
+
+impl GnnConfig {
+    /// The paper's model: H = 128, L = 5, all edge attributes, fully connected.
+    pub fn paper(task: Task) -> Self {
+        Self {
+            task,
+            hidden: 128,
+            layers: 5,
+            edge_attributes: EdgeAttributes::default(),
+            connectivity: Connectivity::default(),
+        }
+    }
+}
+
+/// The edge-attribute groups of e_ij = [Δp, v, K_s]. A dropped group is
+/// zeroed after normalisation, which is the same as the encoder never
+/// seeing it; the input layout stays the same for every model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct EdgeAttributes {
+    pub delta_p: bool,
+    pub orientation: bool,
+    pub stiffness: bool,
+}
+
+impl Default for EdgeAttributes {
+    fn default() -> Self {
+        Self {
+            delta_p: true,
+            orientation: true,
+            stiffness: true,
+        }
+    }
+}
+
+impl EdgeAttributes {
+    /// Multiplier per edge column (1 kept, 0 dropped).
+    pub fn column_mask(&self) -> [f32; EDGE_DIM] {
+        let f = |b: bool| if b { 1.0 } else { 0.0 };
+        let d = f(self.delta_p);
+        [d, d, d, f(self.orientation), f(self.stiffness)]
+    }
+
+    /// "dp+v+ks", "v+ks", "none", ...
+    pub fn label(&self) -> String {
+        let parts: Vec<&str> = [
+            (self.delta_p, "dp"),
+            (self.orientation, "v"),
+            (self.stiffness, "ks"),
+        ]
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, name)| *name)
+        .collect();
+        if parts.is_empty() {
+            "none".to_owned()
+        } else {
+            parts.join("+")
+        }
+    }
+}
+
+impl std::str::FromStr for EdgeAttributes {
+    type Err = String;
+
+    /// Parses `label()` output: "dp+v+ks", "dp+ks", "none", ...
+    fn from_str(s: &str) -> Result<Self, String> {
+        let mut out = Self {
+            delta_p: false,
+            orientation: false,
+            stiffness: false,
+        };
+        if s == "none" {
+            return Ok(out);
+        }
+        for part in s.split('+') {
+            match part.trim() {
+                "dp" => out.delta_p = true,
+                "v" => out.orientation = true,
+                "ks" => out.stiffness = true,
+                other => {
+                    return Err(format!(
+                        "unknown edge attribute {other:?} (expected dp, v, ks joined by +, or none)"
+                    ));
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Message passing over every ordered node pair (the paper) or only over
+/// the tree's branches, in both directions (the ablation's "partial").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Connectivity {
+    #[default]
+    Full,
+    Branches,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -130,10 +236,18 @@ impl GnnWeights {
         let edge_encoder = Mlp::random(EDGE_DIM, h, h, &mut rng);
         let global_encoder =
             (task.global_dim() > 0).then(|| Mlp::random(task.global_dim(), h, h, &mut rng));
+        // Residual branches start small (their last layer scaled by 0.1),
+        // so the stack begins close to the identity and the initial outputs
+        // stay O(1) however many layers there are.
+        let small = |mut mlp: Mlp| {
+            mlp.layers[2].weight.iter_mut().for_each(|w| *w *= 0.1);
+            mlp.layers[2].bias.iter_mut().for_each(|b| *b = 0.0);
+            mlp
+        };
         let blocks = (0..config.layers)
             .map(|_| Block {
-                edge: Mlp::random(hg + 3 * h, h, h, &mut rng),
-                node: Mlp::random(hg + 2 * h, h, h, &mut rng),
+                edge: small(Mlp::random(hg + 3 * h, h, h, &mut rng)),
+                node: small(Mlp::random(hg + 2 * h, h, h, &mut rng)),
             })
             .collect();
         let vector_head = Mlp::random(h, h, 3, &mut rng);
@@ -162,29 +276,19 @@ pub struct GnnOutput {
     pub affordance: Option<Vec<f32>>,
 }
 
-fn normalise(values: &[f32], mean: &[f64], std: &[f64]) -> Vec<f32> {
-    values
-        .iter()
-        .enumerate()
-        .map(|(k, v)| ((*v as f64 - mean[k % mean.len()]) / std[k % std.len()]) as f32)
-        .collect()
-}
-
 /// The reference forward pass.
 pub fn forward(weights: &GnnWeights, batch: &Batch) -> GnnOutput {
     let task = weights.config.task;
     assert_eq!(batch.task, task, "batch and model tasks differ");
     let (b, n, h) = (batch.batch, batch.n, weights.config.hidden);
     let (nd, gd) = (task.node_dim(), task.global_dim());
-    let s = &weights.stats;
-    let nodes = normalise(&batch.nodes, &s.node_mean, &s.node_std);
-    let edges = normalise(&batch.edges, &s.edge_mean, &s.edge_std);
-    let global = if gd > 0 {
-        normalise(&batch.global, &s.global_mean, &s.global_std)
-    } else {
-        Vec::new()
-    };
-
+    let input = gnn_input(
+        batch,
+        &weights.stats,
+        weights.config.edge_attributes,
+        weights.config.connectivity,
+    );
+    let (nodes, edges, global) = (&input.nodes, &input.edges, &input.global);
     let mut hn = vec![0.0f32; b * n * h];
     let mut he = vec![0.0f32; b * n * n * h];
     let mut hg = vec![0.0f32; b * h];
@@ -219,8 +323,7 @@ pub fn forward(weights: &GnnWeights, batch: &Batch) -> GnnOutput {
                     x.extend_from_slice(&hn[(g * n + j) * h..(g * n + j + 1) * h]);
                     x.extend_from_slice(&he[k * h..(k + 1) * h]);
                     let e = block.edge.apply(&x);
-                    let real = i != j && batch.mask[g * n + i] > 0.0 && batch.mask[g * n + j] > 0.0;
-                    if real {
+                    if input.edge_mask[k] > 0.0 {
                         for c in 0..h {
                             agg[(g * n + j) * h + c] += e[c];
                         }
@@ -259,23 +362,29 @@ pub fn forward(weights: &GnnWeights, batch: &Batch) -> GnnOutput {
             }
         }
     }
-    let affordance = weights.affordance_head.as_ref().map(|_| {
-        let mut out = vec![0.0f32; b * n];
-        for g in 0..b {
-            let real: Vec<usize> = (0..n).filter(|&j| batch.mask[g * n + j] > 0.0).collect();
-            let max = real
-                .iter()
-                .map(|&j| logits[g * n + j])
-                .fold(f32::NEG_INFINITY, f32::max);
-            let sum: f32 = real.iter().map(|&j| (logits[g * n + j] - max).exp()).sum();
-            for &j in &real {
-                out[g * n + j] = (logits[g * n + j] - max).exp() / sum;
-            }
-        }
-        out
-    });
+    let affordance = weights
+        .affordance_head
+        .as_ref()
+        .map(|_| masked_softmax(&logits, &batch.mask, b, n));
     GnnOutput {
         vectors,
         affordance,
     }
+}
+
+/// Softmax of B × N logits over each graph's real nodes; padded nodes get 0.
+pub fn masked_softmax(logits: &[f32], mask: &[f32], b: usize, n: usize) -> Vec<f32> {
+    let mut out = vec![0.0f32; b * n];
+    for g in 0..b {
+        let real: Vec<usize> = (0..n).filter(|&j| mask[g * n + j] > 0.0).collect();
+        let max = real
+            .iter()
+            .map(|&j| logits[g * n + j])
+            .fold(f32::NEG_INFINITY, f32::max);
+        let sum: f32 = real.iter().map(|&j| (logits[g * n + j] - max).exp()).sum();
+        for &j in &real {
+            out[g * n + j] = (logits[g * n + j] - max).exp() / sum;
+        }
+    }
+    out
 }

@@ -17,7 +17,8 @@ use tract_onnx::pb::{
     StringStringEntryProto, TensorProto, TypeProto, ValueInfoProto,
 };
 
-use super::gnn::{GnnWeights, Linear, Mlp};
+use super::gnn::{Connectivity, GnnWeights, Linear, Mlp};
+use super::pointnet::PointNetWeights;
 use crate::graph::{EDGE_DIM, Task};
 
 pub const OPSET: i64 = 17;
@@ -150,6 +151,15 @@ fn int_attribute(name: &str, value: i64) -> AttributeProto {
     }
 }
 
+fn ints_attribute(name: &str, values: &[i64]) -> AttributeProto {
+    AttributeProto {
+        name: name.to_owned(),
+        r#type: pb::attribute_proto::AttributeType::Ints as i32,
+        ints: values.to_vec(),
+        ..Default::default()
+    }
+}
+
 fn tensor_value(name: &str, dims: &[&str]) -> ValueInfoProto {
     use pb::tensor_shape_proto::{Dimension, dimension::Value};
     let dim = dims
@@ -181,16 +191,7 @@ pub fn export(weights: &GnnWeights, metadata: &[(String, String)]) -> Vec<u8> {
     let s = &weights.stats;
     let h = weights.config.hidden;
     let mut g = Builder::default();
-    let nd = task.node_dim().to_string();
-    let edge_dim = EDGE_DIM.to_string();
-    let mut inputs = vec![
-        tensor_value("nodes", &["B", "N", &nd]),
-        tensor_value("edges", &["B", "N", "N", &edge_dim]),
-    ];
-    if task.global_dim() > 0 {
-        inputs.push(tensor_value("global", &["B", "3"]));
-    }
-    inputs.push(tensor_value("mask", &["B", "N"]));
+    let inputs = graph_inputs(task);
 
     // Edge mask m[b, i, j] = mask_i · mask_j · (i ≠ j), as [B, N, N, 1].
     let mask_i = g.unsqueeze("mask", &[2]);
@@ -203,10 +204,33 @@ pub fn export(weights: &GnnWeights, metadata: &[(String, String)]) -> Vec<u8> {
     let one = g.constant_f32("one", &[], vec![1.0]);
     let off_diagonal = g.op("Sub", &[&one, &eye], vec![]);
     let edge_mask = g.op("Mul", &[&pair, &off_diagonal], vec![]);
-    let edge_mask = g.unsqueeze(&edge_mask, &[3]);
+    let mut edge_mask = g.unsqueeze(&edge_mask, &[3]);
+    if weights.config.connectivity == Connectivity::Branches {
+        // Branch pairs are exactly those with K_s > 0 (column 4).
+        let from = g.constant_i64("starts", vec![4]);
+        let to = g.constant_i64("ends", vec![5]);
+        let axis = g.constant_i64("axes", vec![3]);
+        let stiffness = g.op("Slice", &["edges", &from, &to, &axis], vec![]);
+        let zero = g.constant_f32("zero", &[], vec![0.0]);
+        let branch = g.op("Greater", &[&stiffness, &zero], vec![]);
+        let branch = g.op(
+            "Cast",
+            &[&branch],
+            vec![int_attribute(
+                "to",
+                pb::tensor_proto::DataType::Float as i64,
+            )],
+        );
+        edge_mask = g.op("Mul", &[&edge_mask, &branch], vec![]);
+    }
 
     let nodes = g.normalise("nodes", &s.node_mean, &s.node_std);
-    let edges = g.normalise("edges", &s.edge_mean, &s.edge_std);
+    let mut edges = g.normalise("edges", &s.edge_mean, &s.edge_std);
+    let columns = weights.config.edge_attributes.column_mask();
+    if columns.contains(&0.0) {
+        let keep = g.constant_f32("columns", &[EDGE_DIM as i64], columns.to_vec());
+        edges = g.op("Mul", &[&edges, &keep], vec![]);
+    }
     let mut hn = g.mlp(&nodes, &weights.node_encoder);
     let mut he = g.mlp(&edges, &weights.edge_encoder);
     let hg = weights.global_encoder.as_ref().map(|enc| {
@@ -255,67 +279,195 @@ pub fn export(weights: &GnnWeights, metadata: &[(String, String)]) -> Vec<u8> {
     }
 
     let raw = g.mlp(&hn, &weights.vector_head);
-    let std = g.constant_f32(
-        "out_std",
-        &[3],
-        weights.output_std.iter().map(|v| *v as f32).collect(),
+    let logits = weights
+        .affordance_head
+        .as_ref()
+        .map(|head| g.mlp(&hn, head));
+    let outputs = g.outputs(
+        task,
+        &raw,
+        logits.as_deref(),
+        &weights.output_mean,
+        &weights.output_std,
     );
-    let mean = g.constant_f32(
-        "out_mean",
-        &[3],
-        weights.output_mean.iter().map(|v| *v as f32).collect(),
-    );
-    let scaled = g.op("Mul", &[&raw, &std], vec![]);
-    let vector_name = if task == Task::Forward {
-        "displacement"
-    } else {
-        "action"
-    };
-    g.op_named("Add", &[&scaled, &mean], vec![], vector_name);
-    let mut outputs = vec![tensor_value(vector_name, &["B", "N", "3"])];
-    if let Some(head) = &weights.affordance_head {
-        let logits = g.mlp(&hn, head); // [B, N, 1]
-        let two = g.constant_i64("axes", vec![2]);
-        let logits = g.op("Squeeze", &[&logits, &two], vec![]);
-        // Padded nodes get a logit of −1e9, hence zero affordance.
-        let minus_one = g.constant_f32("one", &[], vec![1.0]);
-        let off = g.op("Sub", &["mask", &minus_one], vec![]);
-        let big = g.constant_f32("big", &[], vec![1e9]);
-        let penalty = g.op("Mul", &[&off, &big], vec![]);
-        let masked = g.op("Add", &[&logits, &penalty], vec![]);
-        g.op_named(
-            "Softmax",
-            &[&masked],
-            vec![int_attribute("axis", 1)],
-            "affordance",
-        );
-        outputs.push(tensor_value("affordance", &["B", "N"]));
+    g.into_model(
+        &format!("treemanip_gnn_{task:?}").to_lowercase(),
+        inputs,
+        outputs,
+        metadata,
+    )
+}
+
+/// The graph's inputs for a task: the same for every architecture.
+fn graph_inputs(task: Task) -> Vec<ValueInfoProto> {
+    let nd = task.node_dim().to_string();
+    let edge_dim = EDGE_DIM.to_string();
+    let mut inputs = vec![
+        tensor_value("nodes", &["B", "N", &nd]),
+        tensor_value("edges", &["B", "N", "N", &edge_dim]),
+    ];
+    if task.global_dim() > 0 {
+        inputs.push(tensor_value("global", &["B", "3"]));
+    }
+    inputs.push(tensor_value("mask", &["B", "N"]));
+    inputs
+}
+
+impl Builder {
+    /// De-normalises the vector head into `displacement` (forward) or
+    /// `action` (policy) and turns the logits [B, N, 1] into `affordance`,
+    /// a softmax over each graph's real nodes.
+    fn outputs(
+        &mut self,
+        task: Task,
+        raw: &str,
+        logits: Option<&str>,
+        mean: &[f64; 3],
+        std: &[f64; 3],
+    ) -> Vec<ValueInfoProto> {
+        let g = self;
+        let std = g.constant_f32("out_std", &[3], std.iter().map(|v| *v as f32).collect());
+        let mean = g.constant_f32("out_mean", &[3], mean.iter().map(|v| *v as f32).collect());
+        let scaled = g.op("Mul", &[raw, &std], vec![]);
+        let vector_name = if task == Task::Forward {
+            "displacement"
+        } else {
+            "action"
+        };
+        g.op_named("Add", &[&scaled, &mean], vec![], vector_name);
+        let mut outputs = vec![tensor_value(vector_name, &["B", "N", "3"])];
+        if let Some(logits) = logits {
+            let two = g.constant_i64("axes", vec![2]);
+            let logits = g.op("Squeeze", &[logits, &two], vec![]);
+            // Padded nodes get a logit of −1e9, hence zero affordance.
+            let one = g.constant_f32("one", &[], vec![1.0]);
+            let off = g.op("Sub", &["mask", &one], vec![]);
+            let big = g.constant_f32("big", &[], vec![1e9]);
+            let penalty = g.op("Mul", &[&off, &big], vec![]);
+            let masked = g.op("Add", &[&logits, &penalty], vec![]);
+            g.op_named(
+                "Softmax",
+                &[&masked],
+                vec![int_attribute("axis", 1)],
+                "affordance",
+            );
+            outputs.push(tensor_value("affordance", &["B", "N"]));
+        }
+        outputs
     }
 
-    let model = ModelProto {
-        ir_version: 8,
-        opset_import: vec![OperatorSetIdProto {
-            domain: String::new(),
-            version: OPSET,
-        }],
-        producer_name: "treemanip".to_owned(),
-        producer_version: env!("CARGO_PKG_VERSION").to_owned(),
-        graph: Some(GraphProto {
-            node: g.nodes,
-            name: format!("treemanip_gnn_{task:?}").to_lowercase(),
-            initializer: g.initializers,
-            input: inputs,
-            output: outputs,
+    fn into_model(
+        self,
+        name: &str,
+        inputs: Vec<ValueInfoProto>,
+        outputs: Vec<ValueInfoProto>,
+        metadata: &[(String, String)],
+    ) -> Vec<u8> {
+        let model = ModelProto {
+            ir_version: 8,
+            opset_import: vec![OperatorSetIdProto {
+                domain: String::new(),
+                version: OPSET,
+            }],
+            producer_name: "treemanip".to_owned(),
+            producer_version: env!("CARGO_PKG_VERSION").to_owned(),
+            graph: Some(GraphProto {
+                node: self.nodes,
+                name: name.to_owned(),
+                initializer: self.initializers,
+                input: inputs,
+                output: outputs,
+                ..Default::default()
+            }),
+            metadata_props: metadata
+                .iter()
+                .map(|(k, v)| StringStringEntryProto {
+                    key: k.clone(),
+                    value: v.clone(),
+                })
+                .collect(),
             ..Default::default()
-        }),
-        metadata_props: metadata
-            .iter()
-            .map(|(k, v)| StringStringEntryProto {
-                key: k.clone(),
-                value: v.clone(),
-            })
-            .collect(),
-        ..Default::default()
-    };
-    model.encode_to_vec()
+        };
+        model.encode_to_vec()
+    }
+}
+
+/// The PointNet baseline as ONNX bytes; same inputs and outputs as the GNN.
+/// The first layers are split by input part, so the per-graph terms (push
+/// T, global feature) are computed once and broadcast over the points.
+pub fn export_pointnet(weights: &PointNetWeights, metadata: &[(String, String)]) -> Vec<u8> {
+    let task = weights.config.task;
+    let s = &weights.stats;
+    let (nd, gd) = (task.node_dim(), task.global_dim());
+    let mut g = Builder::default();
+    let inputs = graph_inputs(task);
+
+    // p_j − p_0 is the Δp of edge 0 → j: edges[:, 0, :, 0:3].
+    let starts = g.constant_i64("starts", vec![0, 0]);
+    let ends = g.constant_i64("ends", vec![1, 3]);
+    let axes = g.constant_i64("axes", vec![1, 3]);
+    let row = g.op("Slice", &["edges", &starts, &ends, &axes], vec![]);
+    let one = g.constant_i64("axes", vec![1]);
+    let position = g.op("Squeeze", &[&row, &one], vec![]);
+    let position = g.normalise(&position, &weights.position_mean, &weights.position_std);
+    let nodes = g.normalise("nodes", &s.node_mean, &s.node_std);
+
+    let first = &weights.local[0];
+    let mut pre = g.matmul_columns(&position, first, 0, 3);
+    let node_term = g.matmul_columns(&nodes, first, 3, 3 + nd);
+    pre = g.op("Add", &[&pre, &node_term], vec![]);
+    if gd > 0 {
+        let global = g.normalise("global", &s.global_mean, &s.global_std);
+        let global_term = g.matmul_columns(&global, first, 3 + nd, 3 + nd + gd);
+        let global_term = g.unsqueeze(&global_term, &[1]);
+        pre = g.op("Add", &[&pre, &global_term], vec![]);
+    }
+    pre = g.bias(&pre, first);
+    let a = g.op("Relu", &[&pre], vec![]);
+    let local = g.linear(&a, &weights.local[1]);
+    let local = g.op("Relu", &[&local], vec![]);
+
+    let f = g.linear(&local, &weights.feature[0]);
+    let f = g.op("Relu", &[&f], vec![]);
+    let f = g.linear(&f, &weights.feature[1]);
+    let f = g.op("Relu", &[&f], vec![]);
+    // Features are ≥ 0 after the ReLU, so zeroing padded points leaves the
+    // max over real points unchanged.
+    let point_mask = g.unsqueeze("mask", &[2]);
+    let f = g.op("Mul", &[&f, &point_mask], vec![]);
+    // Opset 17's ReduceMax takes its axes as an attribute.
+    let global_feature = g.op(
+        "ReduceMax",
+        &[&f],
+        vec![int_attribute("keepdims", 1), ints_attribute("axes", &[1])],
+    );
+
+    let (l, gl) = (weights.config.local, weights.config.global);
+    let trunk0 = &weights.trunk[0];
+    let local_term = g.matmul_columns(&local, trunk0, 0, l);
+    let global_term = g.matmul_columns(&global_feature, trunk0, l, l + gl);
+    let pre = g.op("Add", &[&local_term, &global_term], vec![]);
+    let pre = g.bias(&pre, trunk0);
+    let t = g.op("Relu", &[&pre], vec![]);
+    let t = g.linear(&t, &weights.trunk[1]);
+    let t = g.op("Relu", &[&t], vec![]);
+
+    let raw = g.linear(&t, &weights.vector_head);
+    let logits = weights
+        .affordance_head
+        .as_ref()
+        .map(|head| g.linear(&t, head));
+    let outputs = g.outputs(
+        task,
+        &raw,
+        logits.as_deref(),
+        &weights.output_mean,
+        &weights.output_std,
+    );
+    g.into_model(
+        &format!("treemanip_pointnet_{task:?}").to_lowercase(),
+        inputs,
+        outputs,
+        metadata,
+    )
 }

@@ -3,6 +3,7 @@
 
 mod args;
 mod dataset;
+mod learn;
 mod plan;
 mod progress;
 mod sim;
@@ -28,6 +29,10 @@ enum Command {
     /// Collect and inspect push-episode datasets (.npz).
     #[command(subcommand)]
     Dataset(dataset::DatasetCommand),
+    /// Train a forward model or contact policy (GNN or PointNet) with burn.
+    Train(learn::TrainArgs),
+    /// Write trained checkpoints as ONNX models with metadata.
+    Export(learn::ExportArgs),
     /// Plan the UR5's motion for a push (the paper's Algorithm 1).
     Plan(plan::PlanArgs),
     /// Evaluate components the way the paper does.
@@ -40,6 +45,12 @@ enum EvalCommand {
     /// Algorithm 1 on test episodes of every size: success rate, planned
     /// rank histogram (the paper's Fig. 10), planning times.
     Plan(plan::EvalPlanArgs),
+    /// Forward models (GNN, PointNet, No Action) on the test split: e_N per
+    /// tree size (the paper's Fig. 7, left).
+    Forward(learn::EvalLearnedArgs),
+    /// Contact policies executed in the simulator, with Greedy, Random and
+    /// No Action: e_N per tree size (the paper's Fig. 7, right).
+    Policy(learn::EvalLearnedArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -47,8 +58,16 @@ fn main() -> std::process::ExitCode {
         Command::Trees(cmd) => trees::run(cmd),
         Command::Sim(cmd) => sim::run(cmd),
         Command::Dataset(cmd) => dataset::run(cmd),
+        Command::Train(args) => learn::train_cmd(args),
+        Command::Export(args) => learn::export_cmd(args),
         Command::Plan(args) => plan::plan(args),
         Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
+        Command::Eval(EvalCommand::Forward(args)) => {
+            learn::eval_learned(treemanip::graph::Task::Forward, args)
+        }
+        Command::Eval(EvalCommand::Policy(args)) => {
+            learn::eval_learned(treemanip::graph::Task::Policy, args)
+        }
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,0 +1,399 @@
+//! `treemanip train` and `treemanip export`.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use clap::{Args, ValueEnum};
+use treemanip::graph::{FEATURE_LAYOUT_VERSION, Task};
+use treemanip::nn::gnn::{Connectivity, EdgeAttributes};
+use treemanip::nn::model::Arch;
+use treemanip::nn::train::{StopReason, TrainConfig, TrainEvent, read_best, read_state, train};
+
+use crate::progress;
+use crate::trees::{NodeSizes, parse_sizes};
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum TaskArg {
+    Forward,
+    Policy,
+}
+
+impl From<TaskArg> for Task {
+    fn from(t: TaskArg) -> Task {
+        match t {
+            TaskArg::Forward => Task::Forward,
+            TaskArg::Policy => Task::Policy,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ArchArg {
+    Gnn,
+    Pointnet,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ConnectivityArg {
+    Full,
+    Branches,
+}
+
+#[derive(Args)]
+pub struct TrainArgs {
+    /// Which model: the forward model or the contact policy.
+    #[arg(value_enum)]
+    task: TaskArg,
+    #[arg(long, value_enum, default_value = "gnn")]
+    arch: ArchArg,
+    /// Dataset directory (`treemanip dataset collect --out DIR`).
+    #[arg(long)]
+    data: PathBuf,
+    /// Checkpoint directory (created; must be new unless --resume).
+    #[arg(long)]
+    out: PathBuf,
+    /// Continue the checkpoint in --out (other settings come from it;
+    /// --epochs and --minutes still apply).
+    #[arg(long)]
+    resume: bool,
+    /// Training tree sizes (the paper: 11,13,15,17,19).
+    #[arg(long, value_parser = parse_sizes, default_value = "11,13,15,17,19")]
+    sizes: NodeSizes,
+    /// Use at most this many episodes per size.
+    #[arg(long)]
+    limit_per_size: Option<usize>,
+    #[arg(long, default_value_t = 100)]
+    epochs: usize,
+    /// Wall-clock budget: stop (with a resumable checkpoint) after this many minutes.
+    #[arg(long)]
+    minutes: Option<f64>,
+    #[arg(long, default_value_t = 64)]
+    batch_size: usize,
+    #[arg(long, default_value_t = 1e-3)]
+    lr: f64,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// GNN: graph2graph layers.
+    #[arg(long, default_value_t = 5)]
+    layers: usize,
+    /// GNN: embedding width.
+    #[arg(long, default_value_t = 128)]
+    hidden: usize,
+    /// GNN: edge attributes used, e.g. dp+v+ks (all), dp+ks, v+ks, none.
+    #[arg(long, default_value = "dp+v+ks")]
+    edge_attributes: EdgeAttributes,
+    /// GNN: message passing over all node pairs or only along branches.
+    #[arg(long, value_enum, default_value = "full")]
+    connectivity: ConnectivityArg,
+}
+
+pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
+    let task: Task = args.task.into();
+    let arch = match args.arch {
+        ArchArg::Gnn => Arch::Gnn,
+        ArchArg::Pointnet => Arch::PointNet,
+    };
+    let mut config = TrainConfig::paper(task, arch, args.data.clone());
+    config.sizes = args.sizes.0.clone();
+    config.limit_per_size = args.limit_per_size;
+    config.epochs = args.epochs;
+    config.batch_size = args.batch_size;
+    config.learning_rate = args.lr;
+    config.seed = args.seed;
+    config.layers = args.layers;
+    config.hidden = args.hidden;
+    config.edge_attributes = args.edge_attributes;
+    config.connectivity = match args.connectivity {
+        ConnectivityArg::Full => Connectivity::Full,
+        ConnectivityArg::Branches => Connectivity::Branches,
+    };
+    config.command = std::env::args().collect::<Vec<_>>().join(" ");
+    anyhow::ensure!(config.batch_size > 0, "--batch-size must be positive");
+    let deadline = args
+        .minutes
+        .map(|m| Instant::now() + Duration::from_secs_f64(m.max(0.0) * 60.0));
+    let mut bar = progress::bar(0, "batches");
+    let mut on_event = |event: TrainEvent| match event {
+        TrainEvent::EpochStart {
+            epoch,
+            batches,
+            done,
+        } => {
+            bar = progress::bar(batches as u64, "batches");
+            bar.set_prefix(format!("epoch {epoch}"));
+            bar.set_position(done as u64);
+        }
+        TrainEvent::Step { loss } => {
+            bar.inc(1);
+            bar.set_message(format!("loss {loss:.4}"));
+        }
+        TrainEvent::EpochEnd(r) => {
+            bar.finish_and_clear();
+            let accuracy = r
+                .validation_accuracy
+                .map(|a| format!(", contact accuracy {:.1} %", 100.0 * a))
+                .unwrap_or_default();
+            eprintln!(
+                "epoch {:>3}: train loss {:.4}, validation loss {:.4}, error {:.2} cm{accuracy} (lr {:.1e}, {:.0} samples/s)",
+                r.epoch,
+                r.train_loss,
+                r.validation_loss,
+                100.0 * r.validation_error,
+                r.learning_rate,
+                r.samples_per_second
+            );
+        }
+    };
+    let (state, reason) = train(config, &args.out, args.resume, deadline, &mut on_event)?;
+    bar.finish_and_clear();
+    let best = state
+        .best
+        .map(|(e, s)| format!("best validation score {s:.5} at epoch {e}"))
+        .unwrap_or_else(|| "no epoch finished yet".to_owned());
+    match reason {
+        StopReason::Finished => eprintln!(
+            "finished {} epochs in {:.1} min; {best}",
+            state.epoch,
+            state.seconds / 60.0
+        ),
+        StopReason::TimeBudget => eprintln!(
+            "time budget reached at epoch {} batch {} ({:.1} min trained); {best}; continue with --resume",
+            state.epoch,
+            state.batch,
+            state.seconds / 60.0
+        ),
+    }
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct ExportArgs {
+    /// Checkpoint directories (`treemanip train --out DIR`); each one's best
+    /// weights become `<task>_<arch>.onnx`.
+    #[arg(required = true)]
+    checkpoints: Vec<PathBuf>,
+    /// Output directory.
+    #[arg(long, default_value = "models")]
+    out: PathBuf,
+}
+
+fn git_commit() -> String {
+    std::process::Command::new("git")
+        .args(["rev-parse", "HEAD"])
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_owned())
+        .unwrap_or_else(|| "unknown".to_owned())
+}
+
+pub fn export_cmd(args: ExportArgs) -> anyhow::Result<()> {
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    for dir in &args.checkpoints {
+        let path = export_one(dir, &args.out)?;
+        println!("{}", path.display());
+    }
+    Ok(())
+}
+
+/// The seed `dataset collect` recorded in the directory's summary.json.
+fn dataset_seed(dir: &Path) -> Option<u64> {
+    let text = std::fs::read_to_string(dir.join("summary.json")).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    v["config"]["seed"].as_u64()
+}
+
+/// The recorded command with the program shown as `treemanip`, wherever
+/// the binary was run from.
+fn command_line(recorded: &str) -> String {
+    match recorded.split_once(' ') {
+        Some((_, rest)) => format!("treemanip {rest}"),
+        None => recorded.to_owned(),
+    }
+}
+
+fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
+    let state = read_state(dir)?;
+    let weights = read_best(dir)?;
+    let best_epoch = state.best.map(|b| b.0);
+    let best_record = state
+        .history
+        .iter()
+        .find(|r| Some(r.epoch) == best_epoch)
+        .cloned();
+    let stats = match &weights {
+        treemanip::nn::model::ModelWeights::Gnn(w) => &w.stats,
+        treemanip::nn::model::ModelWeights::PointNet(w) => &w.stats,
+    };
+    let (out_mean, out_std) = weights.output_scale();
+    let metadata: Vec<(String, String)> =
+        vec![
+        ("name".into(), weights.stem()),
+        ("task".into(), weights.task().name().into()),
+        ("arch".into(), weights.arch().name().into()),
+        ("architecture".into(), weights.describe()),
+        (
+            "feature_layout_version".into(),
+            FEATURE_LAYOUT_VERSION.to_string(),
+        ),
+        (
+            "normalisation".into(),
+            serde_json::json!({"inputs": stats, "output_mean": out_mean, "output_std": out_std})
+                .to_string(),
+        ),
+        (
+            "training_data".into(),
+            serde_json::json!({
+                "directory": state.config.data,
+                "dataset_seed": dataset_seed(&state.config.data),
+                "regenerate": dataset_seed(&state.config.data)
+                    .map(|s| format!("treemanip dataset collect --out DIR --seed {s}")),
+                "sizes": state.config.sizes,
+                "limit_per_size": state.config.limit_per_size,
+                "validation": "trees with index ≡ 9 (mod 10) in each size file",
+            })
+            .to_string(),
+        ),
+        ("training_command".into(), command_line(&state.config.command)),
+        ("training_config".into(), serde_json::to_string(&state.config)?),
+        ("seed".into(), state.config.seed.to_string()),
+        ("git_commit".into(), git_commit()),
+        (
+            "training".into(),
+            serde_json::json!({
+                "epochs": state.epoch,
+                "minutes": state.seconds / 60.0,
+                "samples": state.samples,
+                "best_epoch": best_epoch,
+            })
+            .to_string(),
+        ),
+        (
+            "validation".into(),
+            serde_json::to_string(&best_record)?,
+        ),
+        ("units".into(), "SI: metres, N·m/rad".into()),
+    ];
+    let bytes = weights.to_onnx(&metadata);
+    let path = out.join(format!("{}.onnx", weights.stem()));
+    std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+    Ok(path)
+}
+
+#[derive(Args)]
+pub struct EvalLearnedArgs {
+    /// Directory with the ONNX models (`<task>_gnn.onnx`, `<task>_pointnet.onnx`).
+    #[arg(long, default_value = "models")]
+    models: PathBuf,
+    /// Dataset directory with `test_N{n}.npz`.
+    #[arg(long)]
+    data: PathBuf,
+    /// Where the table (CSV, Markdown, JSON) and the figure (SVG) go.
+    #[arg(long, default_value = "docs/results")]
+    out: PathBuf,
+    #[arg(long, value_parser = parse_sizes, default_value = "10..=30")]
+    sizes: NodeSizes,
+    /// Test episodes per size (the paper: 1000).
+    #[arg(long, default_value_t = 1000)]
+    per_size: usize,
+    /// Graphs per inference call.
+    #[arg(long, default_value_t = 32)]
+    batch_size: usize,
+    /// Native ONNX Runtime library (default: $ORT_DYLIB_PATH, else tract).
+    #[arg(long, env = "ORT_DYLIB_PATH")]
+    ort_dylib: Option<PathBuf>,
+    /// Seed of the Random baseline.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+pub fn eval_learned(task: Task, args: EvalLearnedArgs) -> anyhow::Result<()> {
+    use treemanip::dataset::{Split, read_size_file};
+    use treemanip::eval::learned::{
+        forward_scores, mean_error, policy_scores, task_title, to_csv, to_markdown,
+    };
+    use treemanip::infer::{OnnxModel, init_backend};
+    let backend = init_backend(args.ort_dylib.as_deref())?;
+    let mut models = Vec::new();
+    let mut trained: Vec<usize> = Vec::new();
+    for (arch, label) in [("gnn", "GNN"), ("pointnet", "PointNet")] {
+        let path = args.models.join(format!("{}_{arch}.onnx", task.name()));
+        if !path.exists() {
+            eprintln!("note: {} not found, skipped", path.display());
+            continue;
+        }
+        let model = OnnxModel::load(&path)?;
+        anyhow::ensure!(
+            model.task() == task,
+            "{} is not a {} model",
+            path.display(),
+            task.name()
+        );
+        if let Some(cfg) = model.meta("training_config")
+            && let Ok(v) = serde_json::from_str::<serde_json::Value>(cfg)
+            && let Some(sizes) = v["sizes"].as_array()
+        {
+            trained.extend(sizes.iter().filter_map(|s| s.as_u64().map(|s| s as usize)));
+        }
+        models.push((label.to_owned(), model));
+    }
+    trained.sort_unstable();
+    trained.dedup();
+    eprintln!("backend: {backend:?}; models: {}", models.len());
+    let bar = progress::bar(args.sizes.0.len() as u64, "sizes");
+    let started = Instant::now();
+    let mut scores = Vec::new();
+    for &n in &args.sizes.0 {
+        let path = args.data.join(Split::Test.file_name(n));
+        let data = read_size_file(&path, Split::Test)
+            .map_err(|e| anyhow::anyhow!("reading {}: {e}", path.display()))?;
+        let s = match task {
+            Task::Forward => forward_scores(&data, &mut models, args.per_size, args.batch_size)?,
+            Task::Policy => policy_scores(
+                &data,
+                &mut models,
+                args.per_size,
+                args.batch_size,
+                args.seed,
+            )?,
+        };
+        bar.set_message(format!("N={n}"));
+        bar.inc(1);
+        scores.extend(s);
+    }
+    bar.finish_and_clear();
+    std::fs::create_dir_all(&args.out)?;
+    let stem = format!("{}_eval", task.name());
+    std::fs::write(args.out.join(format!("{stem}.csv")), to_csv(&scores))?;
+    let markdown = to_markdown(&scores, &trained);
+    std::fs::write(args.out.join(format!("{stem}.md")), &markdown)?;
+    std::fs::write(
+        args.out.join(format!("{stem}.json")),
+        serde_json::to_string_pretty(&serde_json::json!({
+            "task": task.name(),
+            "backend": format!("{backend:?}"),
+            "episodes_per_size": args.per_size,
+            "trained_sizes": trained,
+            "seconds": started.elapsed().as_secs_f64(),
+            "scores": scores,
+        }))?,
+    )?;
+    let svg = args.out.join(format!("{stem}.svg"));
+    treemanip::eval::plots::error_by_size_svg(&scores, task_title(task), &trained, &svg)
+        .map_err(|e| anyhow::anyhow!("drawing {}: {e}", svg.display()))?;
+    println!("{markdown}");
+    for m in treemanip::eval::learned::methods(&scores) {
+        eprintln!(
+            "{m}: mean e_N {:.2} cm",
+            100.0 * mean_error(&scores, &m, |_| true)
+        );
+    }
+    eprintln!(
+        "wrote {}/{stem}.{{csv,md,json,svg}} in {:.1} s",
+        args.out.display(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}

@@ -1,0 +1,123 @@
+//! One type for "a trained model, whatever its architecture": what
+//! checkpoints store, what export writes and what evaluation compares.
+
+use serde::{Deserialize, Serialize};
+
+use super::gnn::{self, GnnOutput, GnnWeights};
+use super::onnx;
+use super::pointnet::{self, PointNetWeights};
+use crate::graph::{Batch, Task};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Arch {
+    Gnn,
+    PointNet,
+}
+
+impl Arch {
+    pub fn name(self) -> &'static str {
+        match self {
+            Arch::Gnn => "gnn",
+            Arch::PointNet => "pointnet",
+        }
+    }
+}
+
+impl std::str::FromStr for Arch {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "gnn" => Ok(Arch::Gnn),
+            "pointnet" => Ok(Arch::PointNet),
+            other => Err(format!("unknown architecture {other:?} (gnn or pointnet)")),
+        }
+    }
+}
+
+impl Task {
+    pub fn name(self) -> &'static str {
+        match self {
+            Task::Forward => "forward",
+            Task::Policy => "policy",
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "arch", rename_all = "lowercase")]
+#[allow(clippy::large_enum_variant)] // a handful exist at a time; boxing buys nothing
+pub enum ModelWeights {
+    Gnn(GnnWeights),
+    PointNet(PointNetWeights),
+}
+
+impl ModelWeights {
+    pub fn task(&self) -> Task {
+        match self {
+            ModelWeights::Gnn(w) => w.config.task,
+            ModelWeights::PointNet(w) => w.config.task,
+        }
+    }
+
+    pub fn arch(&self) -> Arch {
+        match self {
+            ModelWeights::Gnn(_) => Arch::Gnn,
+            ModelWeights::PointNet(_) => Arch::PointNet,
+        }
+    }
+
+    /// `forward_gnn`, `policy_pointnet`, ...: the file stem in `models/`.
+    pub fn stem(&self) -> String {
+        format!("{}_{}", self.task().name(), self.arch().name())
+    }
+
+    /// The reference forward pass.
+    pub fn forward(&self, batch: &Batch) -> GnnOutput {
+        match self {
+            ModelWeights::Gnn(w) => gnn::forward(w, batch),
+            ModelWeights::PointNet(w) => pointnet::forward(w, batch),
+        }
+    }
+
+    pub fn to_onnx(&self, metadata: &[(String, String)]) -> Vec<u8> {
+        match self {
+            ModelWeights::Gnn(w) => onnx::export(w, metadata),
+            ModelWeights::PointNet(w) => onnx::export_pointnet(w, metadata),
+        }
+    }
+
+    pub fn output_scale(&self) -> ([f64; 3], [f64; 3]) {
+        match self {
+            ModelWeights::Gnn(w) => (w.output_mean, w.output_std),
+            ModelWeights::PointNet(w) => (w.output_mean, w.output_std),
+        }
+    }
+
+    pub fn set_output_scale(&mut self, mean: [f64; 3], std: [f64; 3]) {
+        match self {
+            ModelWeights::Gnn(w) => (w.output_mean, w.output_std) = (mean, std),
+            ModelWeights::PointNet(w) => (w.output_mean, w.output_std) = (mean, std),
+        }
+    }
+
+    /// A one-line description for logs and metadata.
+    pub fn describe(&self) -> String {
+        match self {
+            ModelWeights::Gnn(w) => format!(
+                "gnn: {} graph2graph layers, hidden {}, edge attributes {}, {:?} connectivity",
+                w.config.layers,
+                w.config.hidden,
+                w.config.edge_attributes.label(),
+                w.config.connectivity
+            )
+            .to_lowercase(),
+            ModelWeights::PointNet(w) => format!(
+                "pointnet: local {}, global {}, trunk {:?}",
+                w.config.local,
+                w.config.global,
+                pointnet::TRUNK
+            ),
+        }
+    }
+}

@@ -1,0 +1,195 @@
+//! Training examples from the `.npz` dataset: every episode is encoded by
+//! the one graph encoder ([`crate::graph`]) when its batch is built, and
+//! batches hold episodes of one tree size (no padding while training).
+
+use std::path::Path;
+
+use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+
+use crate::dataset::{Episode, SizeData, Split, read_size_file};
+use crate::graph::stats::{Running, StatsBuilder};
+use crate::graph::{Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy};
+use crate::seed::derive_seed;
+
+/// Trees whose index in their size file satisfies this are held out for
+/// validation (10 %): validation measures generalisation to unseen trees.
+pub fn is_validation_tree(tree: usize) -> bool {
+    tree % 10 == 9
+}
+
+/// The episodes of one split, grouped by tree size.
+pub struct Examples {
+    pub sizes: Vec<SizeData>,
+    /// (size index, episode index) of the examples in use.
+    pub train: Vec<(usize, usize)>,
+    pub validation: Vec<(usize, usize)>,
+}
+
+/// Per-axis mean and standard deviation of a 3-vector.
+pub type MeanStd = ([f64; 3], [f64; 3]);
+
+/// What the loss compares against, for a batch.
+pub struct Targets {
+    /// B × N × 3 node displacements p′ − p (forward model).
+    pub displacement: Vec<f32>,
+    /// B contacted nodes (policy).
+    pub contact: Vec<usize>,
+    /// B × 3 pushes T (policy).
+    pub push: Vec<f32>,
+}
+
+impl Examples {
+    /// Loads `train_N{n}.npz` for each size; `limit` caps the episodes per
+    /// size (first ones in file order, for quick runs and tests).
+    pub fn load(dir: &Path, sizes: &[usize], limit: Option<usize>) -> anyhow::Result<Self> {
+        let mut out = Examples {
+            sizes: Vec::new(),
+            train: Vec::new(),
+            validation: Vec::new(),
+        };
+        for &n in sizes {
+            let path = dir.join(Split::Train.file_name(n));
+            let data = read_size_file(&path, Split::Train)
+                .map_err(|e| anyhow::anyhow!("reading {}: {e}", path.display()))?;
+            let s = out.sizes.len();
+            let count = limit.unwrap_or(usize::MAX).min(data.episodes.len());
+            for (e, episode) in data.episodes.iter().enumerate().take(count) {
+                if is_validation_tree(episode.tree) {
+                    out.validation.push((s, e));
+                } else {
+                    out.train.push((s, e));
+                }
+            }
+            out.sizes.push(data);
+        }
+        anyhow::ensure!(
+            !out.train.is_empty(),
+            "no training episodes in {}",
+            dir.display()
+        );
+        anyhow::ensure!(
+            !out.validation.is_empty(),
+            "no validation episodes (trees with index ≡ 9 mod 10) in {}",
+            dir.display()
+        );
+        Ok(out)
+    }
+
+    fn episode(&self, (s, e): (usize, usize)) -> (&SizeData, &Episode) {
+        let data = &self.sizes[s];
+        (data, &data.episodes[e])
+    }
+
+    /// The encoded model input of one example.
+    pub fn graph(&self, task: Task, id: (usize, usize)) -> GraphInput {
+        let (data, episode) = self.episode(id);
+        let tree = data.tree_of(episode);
+        let encoded = match task {
+            Task::Forward => encode_forward(tree, episode.push.node, &episode.push.vector),
+            Task::Policy => encode_policy(tree, &episode.final_positions),
+        };
+        encoded.expect("dataset episodes are validated when read")
+    }
+
+    /// A padded batch and its targets.
+    pub fn batch(&self, task: Task, ids: &[(usize, usize)]) -> (Batch, Targets) {
+        let graphs: Vec<GraphInput> = ids.iter().map(|&id| self.graph(task, id)).collect();
+        let batch = batch(&graphs).expect("non-empty batch of one task");
+        let n = batch.n;
+        let mut targets = Targets {
+            displacement: vec![0.0; ids.len() * n * 3],
+            contact: Vec::with_capacity(ids.len()),
+            push: Vec::with_capacity(ids.len() * 3),
+        };
+        for (k, &id) in ids.iter().enumerate() {
+            let (data, episode) = self.episode(id);
+            let tree = data.tree_of(episode);
+            for (j, (after, before)) in episode
+                .final_positions
+                .iter()
+                .zip(tree.positions())
+                .enumerate()
+            {
+                let d = after - before;
+                for c in 0..3 {
+                    targets.displacement[(k * n + j) * 3 + c] = d[c] as f32;
+                }
+            }
+            targets.contact.push(episode.push.node);
+            let t: Vector3<f64> = episode.push.vector;
+            targets.push.extend([t.x as f32, t.y as f32, t.z as f32]);
+        }
+        (batch, targets)
+    }
+
+    /// Input statistics, output (Δp or T) statistics and node-position
+    /// (p_j − p_0) statistics over the training examples only.
+    pub fn statistics(&self, task: Task) -> (FeatureStats, MeanStd, MeanStd) {
+        let mut inputs = StatsBuilder::new(task);
+        let mut outputs = Running::new(3);
+        let mut position = Running::new(3);
+        for &id in &self.train {
+            let g = self.graph(task, id);
+            inputs.add(&g);
+            for j in 0..g.n {
+                position.push(&g.edge(0, j)[..3]);
+            }
+            let (data, episode) = self.episode(id);
+            match task {
+                Task::Forward => {
+                    for (after, before) in episode
+                        .final_positions
+                        .iter()
+                        .zip(data.tree_of(episode).positions())
+                    {
+                        let d = after - before;
+                        outputs.push(&[d.x as f32, d.y as f32, d.z as f32]);
+                    }
+                }
+                Task::Policy => {
+                    let t = episode.push.vector;
+                    outputs.push(&[t.x as f32, t.y as f32, t.z as f32]);
+                }
+            }
+        }
+        let three = |r: &Running| {
+            let (m, s) = r.finish();
+            ([m[0], m[1], m[2]], [s[0], s[1], s[2]])
+        };
+        (inputs.finish(), three(&outputs), three(&position))
+    }
+
+    /// The batches of one epoch: examples shuffled within each tree size,
+    /// cut into batches, batch order shuffled. A function of (seed, epoch)
+    /// only, so a resumed run replays the same order.
+    pub fn epoch_batches(&self, seed: u64, epoch: usize, size: usize) -> Vec<Vec<(usize, usize)>> {
+        let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, &[epoch as u64, 0xba7c]));
+        let mut out = Vec::new();
+        for s in 0..self.sizes.len() {
+            let mut ids: Vec<(usize, usize)> =
+                self.train.iter().copied().filter(|id| id.0 == s).collect();
+            ids.shuffle(&mut rng);
+            out.extend(ids.chunks(size).map(|c| c.to_vec()));
+        }
+        out.shuffle(&mut rng);
+        out
+    }
+
+    /// Validation examples in batches of one size each.
+    pub fn validation_batches(&self, size: usize) -> Vec<Vec<(usize, usize)>> {
+        let mut out = Vec::new();
+        for s in 0..self.sizes.len() {
+            let ids: Vec<(usize, usize)> = self
+                .validation
+                .iter()
+                .copied()
+                .filter(|id| id.0 == s)
+                .collect();
+            out.extend(ids.chunks(size).map(|c| c.to_vec()));
+        }
+        out
+    }
+}

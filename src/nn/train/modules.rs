@@ -1,0 +1,335 @@
+//! The trainable burn counterparts of [`GnnWeights`] and
+//! [`PointNetWeights`], built from and written back to the plain weights.
+//!
+//! The layout is dense: node embeddings [B, N, H], edge embeddings
+//! [B, N, N, H] (entry i, j is the edge i → j). As in the exported graph,
+//! the first layer of every edge MLP is split by input, W_g g + W_i n_i +
+//! W_j n_j + W_e e_ij, so the node terms are computed once per node and
+//! broadcast over the N × N edges (1.5–1.7× faster training).
+
+use burn::module::{Module, Param};
+use burn::nn::Linear as BurnLinear;
+use burn::tensor::activation::relu;
+use burn::tensor::{Device, Tensor, TensorData};
+
+use crate::nn::gnn::{Block, GnnWeights, Linear, Mlp};
+use crate::nn::pointnet::PointNetWeights;
+
+/// Our row-major out × in weights as a burn layer ([in, out] weight).
+fn to_burn(layer: &Linear, device: &Device) -> BurnLinear {
+    let (i, o) = (layer.inputs, layer.outputs);
+    let mut transposed = vec![0.0f32; i * o];
+    for r in 0..o {
+        for c in 0..i {
+            transposed[c * o + r] = layer.weight[r * i + c];
+        }
+    }
+    BurnLinear {
+        weight: Param::from_data(TensorData::new(transposed, [i, o]), device),
+        bias: Some(Param::from_data(
+            TensorData::new(layer.bias.clone(), [o]),
+            device,
+        )),
+    }
+}
+
+/// A tensor's values, row-major.
+pub fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data()
+        .convert::<f32>()
+        .as_slice::<f32>()
+        .expect("f32 tensor")
+        .to_vec()
+}
+
+fn from_burn(layer: &BurnLinear) -> Linear {
+    let [i, o] = layer.weight.dims();
+    let w = values(layer.weight.val());
+    let mut weight = vec![0.0f32; i * o];
+    for r in 0..o {
+        for c in 0..i {
+            weight[r * i + c] = w[c * o + r];
+        }
+    }
+    let bias = layer
+        .bias
+        .as_ref()
+        .map(|b| values(b.val()))
+        .unwrap_or_else(|| vec![0.0; o]);
+    Linear {
+        inputs: i,
+        outputs: o,
+        weight,
+        bias,
+    }
+}
+
+/// Linear → ReLU → Linear → ReLU → Linear.
+#[derive(Module, Debug)]
+pub struct TrainMlp {
+    first: BurnLinear,
+    second: BurnLinear,
+    third: BurnLinear,
+}
+
+impl TrainMlp {
+    fn new(mlp: &Mlp, device: &Device) -> Self {
+        Self {
+            first: to_burn(&mlp.layers[0], device),
+            second: to_burn(&mlp.layers[1], device),
+            third: to_burn(&mlp.layers[2], device),
+        }
+    }
+
+    fn weights(&self) -> Mlp {
+        Mlp {
+            layers: [
+                from_burn(&self.first),
+                from_burn(&self.second),
+                from_burn(&self.third),
+            ],
+        }
+    }
+
+    fn forward<const D: usize>(&self, x: Tensor<D>) -> Tensor<D> {
+        self.tail(apply(&self.first, x))
+    }
+
+    /// Layers 2 and 3 after the caller's layer-1 pre-activation.
+    fn tail<const D: usize>(&self, pre: Tensor<D>) -> Tensor<D> {
+        let a = relu(pre);
+        let b = relu(apply(&self.second, a));
+        apply(&self.third, b)
+    }
+
+    /// x · W₁ restricted to the input columns `from..to`, no bias.
+    fn first_part<const D: usize>(&self, x: Tensor<D>, from: usize, to: usize) -> Tensor<D> {
+        part(&self.first, x, from, to)
+    }
+
+    fn first_bias<const D: usize>(&self, pre: Tensor<D>) -> Tensor<D> {
+        add_bias(&self.first, pre)
+    }
+}
+
+fn part<const D: usize>(layer: &BurnLinear, x: Tensor<D>, from: usize, to: usize) -> Tensor<D> {
+    let w = layer.weight.val();
+    let [_, o] = w.dims();
+    rows_matmul(x, w.slice([from..to, 0..o]))
+}
+
+/// x [..., d_in] · w [d_in, d_out], with every leading axis folded into
+/// the rows of one 2-D matrix product (several times faster on Flex than
+/// a broadcast batched product).
+fn rows_matmul<const D: usize>(x: Tensor<D>, w: Tensor<2>) -> Tensor<D> {
+    let dims = x.dims();
+    let [d_in, d_out] = w.dims();
+    let rows = dims[..D - 1].iter().product::<usize>();
+    let mut out = dims;
+    out[D - 1] = d_out;
+    x.reshape([rows, d_in]).matmul(w).reshape(out)
+}
+
+/// A burn linear layer applied with [`rows_matmul`].
+fn apply<const D: usize>(layer: &BurnLinear, x: Tensor<D>) -> Tensor<D> {
+    add_bias(layer, rows_matmul(x, layer.weight.val()))
+}
+
+fn add_bias<const D: usize>(layer: &BurnLinear, pre: Tensor<D>) -> Tensor<D> {
+    match &layer.bias {
+        Some(b) => {
+            let [o] = b.dims();
+            let mut shape = [1usize; D];
+            shape[D - 1] = o;
+            pre + b.val().reshape(shape)
+        }
+        None => pre,
+    }
+}
+
+#[derive(Module, Debug)]
+pub struct TrainBlock {
+    edge: TrainMlp,
+    node: TrainMlp,
+}
+
+/// Network outputs in normalised units: vectors [B, N, 3], logits [B, N].
+pub struct Outputs {
+    pub vectors: Tensor<3>,
+    pub logits: Option<Tensor<2>>,
+}
+
+/// Model-side inputs on the device (see [`crate::nn::input`]).
+pub struct DeviceInput {
+    /// [B, N, d]: GNN node attributes, or PointNet point features.
+    pub nodes: Tensor<3>,
+    /// [B, N, N, 5] (GNN only).
+    pub edges: Option<Tensor<4>>,
+    /// [B, 3] (GNN forward model only).
+    pub global: Option<Tensor<2>>,
+    /// [B, N, N, 1] (GNN only).
+    pub edge_mask: Option<Tensor<4>>,
+    /// [B, N].
+    pub node_mask: Tensor<2>,
+}
+
+#[derive(Module, Debug)]
+pub struct TrainGnn {
+    node_encoder: TrainMlp,
+    edge_encoder: TrainMlp,
+    global_encoder: Option<TrainMlp>,
+    blocks: Vec<TrainBlock>,
+    vector_head: TrainMlp,
+    affordance_head: Option<TrainMlp>,
+}
+
+impl TrainGnn {
+    pub fn new(w: &GnnWeights, device: &Device) -> Self {
+        Self {
+            node_encoder: TrainMlp::new(&w.node_encoder, device),
+            edge_encoder: TrainMlp::new(&w.edge_encoder, device),
+            global_encoder: w.global_encoder.as_ref().map(|m| TrainMlp::new(m, device)),
+            blocks: w
+                .blocks
+                .iter()
+                .map(|b| TrainBlock {
+                    edge: TrainMlp::new(&b.edge, device),
+                    node: TrainMlp::new(&b.node, device),
+                })
+                .collect(),
+            vector_head: TrainMlp::new(&w.vector_head, device),
+            affordance_head: w.affordance_head.as_ref().map(|m| TrainMlp::new(m, device)),
+        }
+    }
+
+    /// The trained parameters written into `template` (which supplies the
+    /// configuration and statistics).
+    pub fn to_weights(&self, template: &GnnWeights) -> GnnWeights {
+        GnnWeights {
+            node_encoder: self.node_encoder.weights(),
+            edge_encoder: self.edge_encoder.weights(),
+            global_encoder: self.global_encoder.as_ref().map(TrainMlp::weights),
+            blocks: self
+                .blocks
+                .iter()
+                .map(|b| Block {
+                    edge: b.edge.weights(),
+                    node: b.node.weights(),
+                })
+                .collect(),
+            vector_head: self.vector_head.weights(),
+            affordance_head: self.affordance_head.as_ref().map(TrainMlp::weights),
+            ..template.clone()
+        }
+    }
+
+    pub fn forward(&self, input: &DeviceInput) -> Outputs {
+        let [b, n, _] = input.nodes.dims();
+        let edges = input.edges.clone().expect("GNN input has edges");
+        let edge_mask = input.edge_mask.clone().expect("GNN input has an edge mask");
+        let mut hn = self.node_encoder.forward(input.nodes.clone());
+        let mut he = self.edge_encoder.forward(edges);
+        let hg = match (&self.global_encoder, &input.global) {
+            (Some(enc), Some(g)) => Some(enc.forward(g.clone())),
+            _ => None,
+        };
+        let h = hn.dims()[2];
+        let g0 = if hg.is_some() { h } else { 0 };
+        for block in &self.blocks {
+            let sender = block
+                .edge
+                .first_part(hn.clone(), g0, g0 + h)
+                .unsqueeze_dim::<4>(2);
+            let receiver = block
+                .edge
+                .first_part(hn.clone(), g0 + h, g0 + 2 * h)
+                .unsqueeze_dim::<4>(1);
+            let mut pre = block.edge.first_part(he.clone(), g0 + 2 * h, g0 + 3 * h);
+            pre = pre + sender + receiver;
+            if let Some(hg) = &hg {
+                pre = pre
+                    + block
+                        .edge
+                        .first_part(hg.clone(), 0, h)
+                        .reshape([b, 1, 1, h]);
+            }
+            let new_e = block.edge.tail(block.edge.first_bias(pre));
+            let aggregated: Tensor<3> = (new_e.clone() * edge_mask.clone())
+                .sum_dim(1)
+                .reshape([b, n, h]);
+            let mut npre = block.node.first_part(hn.clone(), g0, g0 + h)
+                + block.node.first_part(aggregated, g0 + h, g0 + 2 * h);
+            if let Some(hg) = &hg {
+                npre = npre + block.node.first_part(hg.clone(), 0, h).reshape([b, 1, h]);
+            }
+            let new_n = block.node.tail(block.node.first_bias(npre));
+            hn = hn + new_n;
+            he = he + new_e;
+        }
+        Outputs {
+            vectors: self.vector_head.forward(hn.clone()),
+            logits: self
+                .affordance_head
+                .as_ref()
+                .map(|head| head.forward(hn).reshape([b, n])),
+        }
+    }
+}
+
+#[derive(Module, Debug)]
+pub struct TrainPointNet {
+    local: Vec<BurnLinear>,
+    feature: Vec<BurnLinear>,
+    trunk: Vec<BurnLinear>,
+    vector_head: BurnLinear,
+    affordance_head: Option<BurnLinear>,
+}
+
+impl TrainPointNet {
+    pub fn new(w: &PointNetWeights, device: &Device) -> Self {
+        let layers = |ls: &[Linear]| ls.iter().map(|l| to_burn(l, device)).collect();
+        Self {
+            local: layers(&w.local),
+            feature: layers(&w.feature),
+            trunk: layers(&w.trunk),
+            vector_head: to_burn(&w.vector_head, device),
+            affordance_head: w.affordance_head.as_ref().map(|l| to_burn(l, device)),
+        }
+    }
+
+    pub fn to_weights(&self, template: &PointNetWeights) -> PointNetWeights {
+        let pair = |ls: &[BurnLinear]| [from_burn(&ls[0]), from_burn(&ls[1])];
+        PointNetWeights {
+            local: pair(&self.local),
+            feature: pair(&self.feature),
+            trunk: pair(&self.trunk),
+            vector_head: from_burn(&self.vector_head),
+            affordance_head: self.affordance_head.as_ref().map(from_burn),
+            ..template.clone()
+        }
+    }
+
+    /// `input.nodes` holds the normalised point features.
+    pub fn forward(&self, input: &DeviceInput) -> Outputs {
+        let [b, n, _] = input.nodes.dims();
+        let local = relu(apply(&self.local[0], input.nodes.clone()));
+        let local = relu(apply(&self.local[1], local));
+        let f = relu(apply(&self.feature[0], local.clone()));
+        let f = relu(apply(&self.feature[1], f));
+        // ≥ 0 after the ReLU: zeroing padded points keeps the max over real ones.
+        let f = f * input.node_mask.clone().unsqueeze_dim::<3>(2);
+        let global = f.max_dim(1); // [B, 1, G]
+        let l = local.dims()[2];
+        let g = global.dims()[2];
+        let pre = part(&self.trunk[0], local, 0, l) + part(&self.trunk[0], global, l, l + g);
+        let t = relu(add_bias(&self.trunk[0], pre));
+        let t = relu(apply(&self.trunk[1], t));
+        Outputs {
+            vectors: apply(&self.vector_head, t.clone()),
+            logits: self
+                .affordance_head
+                .as_ref()
+                .map(|head| apply(head, t).reshape([b, n])),
+        }
+    }
+}
