@@ -1,138 +1,39 @@
 //! `treemanip-server` as a process: it binds, answers the process endpoints
 //! with the documented JSON shapes, and exits cleanly on SIGTERM.
 
-use std::io::{BufRead, BufReader, Read, Write};
+mod common;
+
+use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
+use common::server::Server;
 use serde_json::{Value, json};
 
-struct Server {
-    child: Child,
-    addr: String,
-}
-
-impl Server {
-    fn start() -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_treemanip-server"))
-            .args(["--bind", "127.0.0.1:0"])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("server starts");
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let addr = line
-            .trim()
-            .strip_prefix("listening on http://")
-            .unwrap_or_else(|| panic!("unexpected first line: {line:?}"))
-            .to_owned();
-        Self { child, addr }
-    }
-
-    /// Sends one HTTP/1.1 request; returns status, lower-cased headers and body.
-    fn raw(
-        &self,
-        method: &str,
-        path: &str,
-        content_type: &str,
-        body: &[u8],
-    ) -> (u16, String, String) {
-        let mut stream = TcpStream::connect(&self.addr).unwrap();
-        stream
-            .set_read_timeout(Some(Duration::from_secs(30)))
-            .unwrap();
-        write!(
-            stream,
-            "{method} {path} HTTP/1.1\r\nHost: test\r\nConnection: close\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\n\r\n",
-            body.len()
-        )
-        .unwrap();
-        // The server may answer (413) before it has read a large body.
-        let _ = stream.write_all(body);
-        let mut response = Vec::new();
-        let _ = stream.read_to_end(&mut response);
-        let response = String::from_utf8_lossy(&response).into_owned();
-        let (head, body) = response.split_once("\r\n\r\n").expect("header/body split");
-        let status = head.split_whitespace().nth(1).unwrap().parse().unwrap();
-        (status, head.to_ascii_lowercase(), body.to_owned())
-    }
-
-    /// A GET expecting JSON.
-    fn get(&self, path: &str) -> (u16, Value) {
-        self.send("GET", path, "application/json", b"")
-    }
-
-    /// A request with a JSON body, expecting a JSON answer.
-    fn json(&self, method: &str, path: &str, body: &Value) -> (u16, Value) {
-        self.send(
-            method,
-            path,
-            "application/json",
-            &serde_json::to_vec(body).unwrap(),
-        )
-    }
-
-    fn send(&self, method: &str, path: &str, content_type: &str, body: &[u8]) -> (u16, Value) {
-        let (status, head, body) = self.raw(method, path, content_type, body);
-        assert!(head.contains("content-type: application/json"), "{head}");
-        (
-            status,
-            serde_json::from_str(&body).unwrap_or_else(|e| panic!("{e}: {body}")),
-        )
-    }
-}
-
-impl Server {
-    fn terminate(&self) {
-        let pid = self.child.id().to_string();
-        assert!(
-            Command::new("kill")
-                .args(["-TERM", &pid])
-                .status()
-                .unwrap()
-                .success()
-        );
-    }
-
-    /// Waits (up to 10 s) for the process to exit, and asserts it exited 0.
-    fn wait_for_clean_exit(&mut self, what: &str) {
-        let deadline = std::time::Instant::now() + Duration::from_secs(10);
-        loop {
-            if let Some(status) = self.child.try_wait().unwrap() {
-                assert!(status.success(), "exit status {status}");
-                return;
-            }
-            assert!(std::time::Instant::now() < deadline, "{what}");
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-    }
+/// Without models: only the simulator answers.
+fn start() -> Server {
+    let empty = common::temp_dir("no-models");
+    Server::start(&["--models-dir", empty.to_str().unwrap()])
 }
 
 #[test]
 fn process_endpoints_and_error_shape() {
-    let server = Server::start();
+    let server = start();
     let (status, body) = server.get("/healthz");
     assert_eq!(status, 200);
     assert_eq!(body["status"], "ok");
 
     let (status, body) = server.get("/readyz");
-    assert_eq!(status, 503, "no models are shipped yet");
+    assert_eq!(status, 503, "this server has no models");
     assert_eq!(body["error"]["code"], "not_ready");
-    assert!(
-        body["error"]["message"]
-            .as_str()
-            .unwrap()
-            .contains("no models")
+    assert_eq!(
+        body["error"]["details"]["missing"],
+        json!(["forward_gnn", "policy_gnn"])
+    );
+    let (status, body) = server.json("POST", "/v1/forward", &simulate_body(tree_json()));
+    assert_eq!(
+        (status, body["error"]["code"].as_str()),
+        (503, Some("not_ready"))
     );
 
     let (status, body) = server.get("/no/such/route");
@@ -148,7 +49,7 @@ fn process_endpoints_and_error_shape() {
 
 #[test]
 fn sigterm_shuts_down_cleanly() {
-    let mut server = Server::start();
+    let mut server = start();
     assert_eq!(server.get("/healthz").0, 200);
     server.terminate();
     server.wait_for_clean_exit("server ignored SIGTERM");
@@ -169,7 +70,7 @@ fn simulate_body(tree: Value) -> Value {
 
 #[test]
 fn simulate_answers_with_the_simulators_ground_truth() {
-    let server = Server::start();
+    let server = start();
     let (status, body) = server.json("POST", "/v1/simulate", &simulate_body(tree_json()));
     assert_eq!(status, 200, "{body}");
     let finals = body["final_positions"].as_array().unwrap();
@@ -216,7 +117,7 @@ fn expect_error(server: &Server, body: &Value, status: u16, code: &str) -> Value
 
 #[test]
 fn every_error_class_has_its_status_and_shape() {
-    let server = Server::start();
+    let server = start();
     // 400: not JSON, NaN, wrong shape, unknown field.
     let (status, body) = server.send("POST", "/v1/simulate", "application/json", b"{\"tree\": ");
     assert_eq!(
@@ -325,7 +226,7 @@ fn every_error_class_has_its_status_and_shape() {
 
 #[test]
 fn metrics_count_requests_and_the_spec_is_served() {
-    let server = Server::start();
+    let server = start();
     let count = |text: &str| -> f64 {
         text.lines()
             .filter(|l| {
@@ -359,7 +260,7 @@ fn metrics_count_requests_and_the_spec_is_served() {
 
 #[test]
 fn sigterm_lets_an_in_flight_request_finish() {
-    let mut server = Server::start();
+    let mut server = start();
     let body = serde_json::to_vec(&simulate_body(tree_json())).unwrap();
     let (first, rest) = body.split_at(body.len() / 2);
     let mut stream = TcpStream::connect(&server.addr).unwrap();

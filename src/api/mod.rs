@@ -1,15 +1,17 @@
 //! The HTTP layer: routes, request/response types, error mapping, limits
-//! and metrics. It owns no computation; CPU work (simulation now; inference
-//! and planning later) runs on tokio's blocking pool behind an admission
-//! limit, so the async executor only moves bytes.
+//! and metrics. It owns no computation; CPU work (inference, simulation,
+//! planning) runs on tokio's blocking pool behind an admission limit, so
+//! the async executor only moves bytes.
 //!
-//! Routes so far: `GET /healthz`, `GET /readyz`, `GET /metrics`,
-//! `GET /openapi.yaml`, `POST /v1/simulate`. The model endpoints
-//! (`/v1/forward`, `/v1/policy`, `/v1/plan`) arrive with the trained models.
+//! Routes: `GET /healthz`, `GET /readyz`, `GET /metrics`, `GET /openapi.yaml`,
+//! `GET /v1/models`, `POST /v1/forward`, `POST /v1/policy`, `POST /v1/plan`,
+//! `POST /v1/simulate`. Described in `openapi.yaml`.
 
 pub mod error;
 pub mod json;
 pub mod metrics;
+pub mod plan;
+pub mod predict;
 pub mod simulate;
 pub mod tree_json;
 
@@ -26,6 +28,27 @@ use tokio::sync::Semaphore;
 
 use error::ApiError;
 
+use crate::graph::Task;
+use crate::infer::Backend;
+use crate::infer::models::{ModelSet, ServedModel};
+
+/// A served model that can move into a blocking job.
+#[derive(Clone)]
+pub struct ModelRef {
+    set: Arc<ModelSet>,
+    index: usize,
+}
+
+impl std::ops::Deref for ModelRef {
+    type Target = ServedModel;
+    fn deref(&self) -> &ServedModel {
+        &self.set.models[self.index]
+    }
+}
+
+/// Models both model endpoints need before the server calls itself ready.
+pub const REQUIRED_MODELS: [&str; 2] = ["forward_gnn", "policy_gnn"];
+
 /// Limits a deployment can tune (flags / environment of the server).
 #[derive(Debug, Clone)]
 pub struct Limits {
@@ -37,6 +60,10 @@ pub struct Limits {
     pub max_in_flight: usize,
     /// Time budget of one request's CPU work.
     pub request_timeout: Duration,
+    /// Actions one `/v1/forward` call may evaluate.
+    pub max_actions: usize,
+    /// Largest planning budget a `/v1/plan` call may ask for.
+    pub max_plan_budget: Duration,
 }
 
 impl Default for Limits {
@@ -47,6 +74,8 @@ impl Default for Limits {
             max_body_bytes: 1 << 20,
             max_in_flight: 4 * cores,
             request_timeout: Duration::from_secs(10),
+            max_actions: 256,
+            max_plan_budget: Duration::from_secs(5),
         }
     }
 }
@@ -55,8 +84,8 @@ impl Default for Limits {
 #[derive(Clone)]
 pub struct AppState {
     pub limits: Limits,
-    /// Names of the models that are loaded and can answer requests.
-    pub loaded_models: Vec<String>,
+    /// The served models (none: only `/v1/simulate` works, `/readyz` is 503).
+    pub models: Option<Arc<ModelSet>>,
     admission: Arc<Semaphore>,
     metrics: metrics_exporter_prometheus::PrometheusHandle,
 }
@@ -66,9 +95,41 @@ impl AppState {
         Self {
             admission: Arc::new(Semaphore::new(limits.max_in_flight)),
             limits,
-            loaded_models: Vec::new(),
+            models: None,
             metrics: metrics::recorder(),
         }
+    }
+
+    pub fn with_models(mut self, models: Arc<ModelSet>) -> Self {
+        self.models = Some(models);
+        self
+    }
+
+    /// `tract` or `onnxruntime`.
+    pub fn backend_name(&self) -> String {
+        match self.models.as_ref().map(|m| &m.backend) {
+            Some(Backend::OnnxRuntime { .. }) => "onnxruntime".to_owned(),
+            _ => "tract".to_owned(),
+        }
+    }
+
+    /// The model serving `task`, or 503 naming what is missing.
+    pub fn model_for(&self, task: Task) -> Result<ModelRef, ApiError> {
+        let set = self.models.clone().ok_or_else(|| {
+            ApiError::not_ready("no models are loaded (start the server with --models-dir)")
+        })?;
+        let name = format!("{}_gnn", task.name());
+        let index = set
+            .models
+            .iter()
+            .position(|m| m.name == name)
+            .ok_or_else(|| {
+                ApiError::not_ready(format!(
+                    "the {name} model is not loaded (looked in {})",
+                    set.dir.display()
+                ))
+            })?;
+        Ok(ModelRef { set, index })
     }
 
     /// Runs CPU work on the blocking pool, within the admission limit and
@@ -107,6 +168,10 @@ pub fn router(state: AppState) -> Router {
         .route("/readyz", get(readyz))
         .route("/metrics", get(render_metrics))
         .route("/openapi.yaml", get(openapi))
+        .route("/v1/models", get(list_models))
+        .route("/v1/forward", post(predict::forward))
+        .route("/v1/policy", post(predict::policy))
+        .route("/v1/plan", post(plan::plan))
         .route("/v1/simulate", post(simulate::simulate))
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
@@ -122,14 +187,60 @@ async fn healthz() -> axum::Json<serde_json::Value> {
 
 /// Ready means: every model the endpoints need is loaded.
 async fn readyz(State(state): State<AppState>) -> Result<axum::Json<serde_json::Value>, ApiError> {
-    if state.loaded_models.is_empty() {
-        return Err(ApiError::not_ready(
-            "no models are loaded: this build ships no trained models yet (POST /v1/simulate works without them)",
-        ));
+    let loaded: Vec<String> = state
+        .models
+        .as_ref()
+        .map(|m| m.models.iter().map(|m| m.name.clone()).collect())
+        .unwrap_or_default();
+    let missing: Vec<&str> = REQUIRED_MODELS
+        .iter()
+        .copied()
+        .filter(|r| !loaded.iter().any(|l| l == r))
+        .collect();
+    if !missing.is_empty() {
+        return Err(ApiError::not_ready(format!(
+            "models not loaded: {} (POST /v1/simulate works without them)",
+            missing.join(", ")
+        ))
+        .with_details(json!({ "missing": missing, "loaded": loaded })));
     }
     Ok(axum::Json(
-        json!({ "status": "ready", "models": state.loaded_models }),
+        json!({ "status": "ready", "models": loaded, "backend": state.backend_name() }),
     ))
+}
+
+/// Every loaded model with its metadata.
+async fn list_models(State(state): State<AppState>) -> axum::Json<serde_json::Value> {
+    let models: Vec<serde_json::Value> = state
+        .models
+        .as_ref()
+        .map(|set| {
+            set.models
+                .iter()
+                .map(|m| {
+                    let metadata: serde_json::Map<String, serde_json::Value> = m
+                        .metadata
+                        .iter()
+                        .map(|(k, v)| {
+                            // Values that are JSON documents are returned as JSON.
+                            let value = serde_json::from_str::<serde_json::Value>(v)
+                                .ok()
+                                .filter(|v| v.is_object() || v.is_array())
+                                .unwrap_or_else(|| serde_json::Value::String(v.clone()));
+                            (k.clone(), value)
+                        })
+                        .collect();
+                    json!({
+                        "name": m.name,
+                        "task": m.task.name(),
+                        "file": m.file.file_name().map(|f| f.to_string_lossy().into_owned()),
+                        "metadata": metadata,
+                    })
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    axum::Json(json!({ "backend": state.backend_name(), "models": models }))
 }
 
 async fn render_metrics(State(state): State<AppState>) -> impl IntoResponse {

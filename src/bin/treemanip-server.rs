@@ -5,6 +5,7 @@ use std::net::SocketAddr;
 use clap::{Parser, ValueEnum};
 use tokio::net::TcpListener;
 use treemanip::api::{self, AppState, Limits};
+use treemanip::infer::models::ModelSet;
 
 #[derive(Parser)]
 #[command(
@@ -28,6 +29,19 @@ struct Args {
     /// Time budget of one request (seconds); past it the answer is 504.
     #[arg(long, env = "TREEMANIP_REQUEST_TIMEOUT", default_value_t = 10.0)]
     request_timeout: f64,
+    /// Directory with the ONNX models (`forward_gnn.onnx`, `policy_gnn.onnx`, ...).
+    #[arg(long, env = "TREEMANIP_MODELS_DIR", default_value = "models")]
+    models_dir: std::path::PathBuf,
+    /// ONNX Runtime shared library; without it (or if it fails to load) the
+    /// models run on the embedded tract backend.
+    #[arg(long, env = "ORT_DYLIB_PATH")]
+    ort_dylib: Option<std::path::PathBuf>,
+    /// Actions one /v1/forward call may evaluate.
+    #[arg(long, env = "TREEMANIP_MAX_ACTIONS", default_value_t = 256)]
+    max_actions: usize,
+    /// Largest planning budget a /v1/plan call may ask for (milliseconds).
+    #[arg(long, env = "TREEMANIP_MAX_PLAN_BUDGET_MS", default_value_t = 5000)]
+    max_plan_budget_ms: u64,
     /// Log format.
     #[arg(long, env = "TREEMANIP_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
     log_format: LogFormat,
@@ -52,15 +66,6 @@ async fn main() -> anyhow::Result<()> {
         LogFormat::Json => logs.json().init(),
     }
 
-    let listener = TcpListener::bind(args.bind)
-        .await
-        .map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", args.bind))?;
-    let addr = listener.local_addr()?;
-    tracing::warn!("no trained models are shipped yet: /readyz answers 503");
-    tracing::info!(%addr, "listening");
-    // One machine-readable line on stdout for scripts and tests.
-    println!("listening on http://{addr}");
-
     if !(2..=treemanip::tree::MAX_NODES).contains(&args.max_nodes) {
         anyhow::bail!(
             "--max-nodes must be between 2 and {}",
@@ -70,15 +75,37 @@ async fn main() -> anyhow::Result<()> {
     if !(args.request_timeout.is_finite() && args.request_timeout > 0.0) {
         anyhow::bail!("--request-timeout must be a positive number of seconds");
     }
+    if args.max_actions == 0 {
+        anyhow::bail!("--max-actions must be at least 1");
+    }
+    let sessions = std::thread::available_parallelism().map_or(2, |n| n.get());
+    let models = ModelSet::load_dir(&args.models_dir, args.ort_dylib.as_deref(), sessions)
+        .map_err(|e| anyhow::anyhow!("loading models from {}: {e}", args.models_dir.display()))?;
+    tracing::info!(
+        backend = ?models.backend,
+        models = ?models.models.iter().map(|m| m.name.as_str()).collect::<Vec<_>>(),
+        "models loaded"
+    );
+
+    let listener = TcpListener::bind(args.bind)
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", args.bind))?;
+    let addr = listener.local_addr()?;
+    tracing::info!(%addr, "listening");
+    // One machine-readable line on stdout for scripts and tests.
+    println!("listening on http://{addr}");
+
     let defaults = Limits::default();
     let limits = Limits {
         max_nodes: args.max_nodes,
         max_body_bytes: args.max_body_bytes,
         max_in_flight: args.max_in_flight.unwrap_or(defaults.max_in_flight).max(1),
         request_timeout: std::time::Duration::from_secs_f64(args.request_timeout),
+        max_actions: args.max_actions,
+        max_plan_budget: std::time::Duration::from_millis(args.max_plan_budget_ms),
     };
-    let app =
-        api::router(AppState::new(limits)).layer(tower_http::trace::TraceLayer::new_for_http());
+    let state = AppState::new(limits).with_models(std::sync::Arc::new(models));
+    let app = api::router(state).layer(tower_http::trace::TraceLayer::new_for_http());
     axum::serve(listener, app)
         .with_graceful_shutdown(shutdown_signal())
         .await?;

@@ -1,0 +1,268 @@
+//! `POST /v1/forward` and `POST /v1/policy`: the learned models.
+
+use axum::extract::State;
+use nalgebra::{Point3, Vector3};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::AppState;
+use super::error::ApiError;
+use super::json::ApiJson;
+use super::tree_json::TreeJson;
+use crate::graph::Task;
+use crate::infer::models::{Candidate, ServedModel, predict_displacements, rank_candidates};
+use crate::sim::MAX_PUSH_LENGTH;
+use crate::tree::Tree;
+
+/// Which model answered, and on what.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ModelInfo {
+    pub name: String,
+    /// The git commit the model was trained at.
+    pub version: String,
+    /// `tract` or `onnxruntime`.
+    pub backend: String,
+}
+
+impl ModelInfo {
+    pub fn of(model: &ServedModel, state: &AppState) -> Self {
+        Self {
+            name: model.name.clone(),
+            version: model.meta("git_commit").unwrap_or("unknown").to_owned(),
+            backend: state.backend_name(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForwardRequest {
+    pub tree: TreeJson,
+    /// One action: the contacted node...
+    #[serde(default)]
+    pub contact_node: Option<usize>,
+    /// ...and the gripper displacement T (m).
+    #[serde(default)]
+    pub push: Option<Vec<f64>>,
+    /// Many actions on the same tree: contact nodes...
+    #[serde(default)]
+    pub contact_nodes: Option<Vec<usize>>,
+    /// ...and their pushes, one per contact node.
+    #[serde(default)]
+    pub pushes: Option<Vec<Vec<f64>>>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct ForwardResponse {
+    /// Per action, per node: predicted Δp (m).
+    pub displacements: Vec<Vec<[f64; 3]>>,
+    /// Per action, per node: predicted p + Δp (m).
+    pub positions: Vec<Vec<[f64; 3]>>,
+    pub model: ModelInfo,
+}
+
+/// A 3-vector field, finite.
+pub fn vector3(values: &[f64], field: &str) -> Result<Vector3<f64>, ApiError> {
+    let [x, y, z] = <[f64; 3]>::try_from(values).map_err(|_| {
+        ApiError::invalid_argument(format!(
+            "`{field}` must have 3 numbers, it has {}",
+            values.len()
+        ))
+        .with_details(json!({ "field": field }))
+    })?;
+    let v = Vector3::new(x, y, z);
+    if !v.iter().all(|c| c.is_finite()) {
+        return Err(
+            ApiError::invalid_argument(format!("`{field}` must be finite"))
+                .with_details(json!({ "field": field })),
+        );
+    }
+    Ok(v)
+}
+
+fn check_push(push: Vector3<f64>, field: &str) -> Result<Vector3<f64>, ApiError> {
+    if push.norm() > MAX_PUSH_LENGTH {
+        return Err(ApiError::invalid_argument(format!(
+            "`{field}` is {:.3} m long; pushes are at most {MAX_PUSH_LENGTH} m",
+            push.norm()
+        ))
+        .with_details(json!({ "field": field })));
+    }
+    Ok(push)
+}
+
+fn check_contact(node: usize, tree: &Tree, field: &str) -> Result<usize, ApiError> {
+    if node == 0 || node >= tree.len() {
+        return Err(ApiError::invalid_argument(format!(
+            "`{field}` is {node}; it must name a non-root node, 1 to {}",
+            tree.len() - 1
+        ))
+        .with_details(json!({ "field": field, "node": node })));
+    }
+    Ok(node)
+}
+
+/// Target positions: one finite 3-vector per node.
+pub fn targets(values: &[Vec<f64>], tree: &Tree) -> Result<Vec<Point3<f64>>, ApiError> {
+    if values.len() != tree.len() {
+        return Err(ApiError::invalid_argument(format!(
+            "`target_positions` has {} entries but the tree has {} nodes",
+            values.len(),
+            tree.len()
+        ))
+        .with_details(
+            json!({ "field": "target_positions", "expected": tree.len(), "got": values.len() }),
+        ));
+    }
+    values
+        .iter()
+        .enumerate()
+        .map(|(j, v)| vector3(v, &format!("target_positions[{j}]")).map(Point3::from))
+        .collect()
+}
+
+fn actions(
+    request: &ForwardRequest,
+    tree: &Tree,
+    max_actions: usize,
+) -> Result<Vec<(usize, Vector3<f64>)>, ApiError> {
+    let single = request.contact_node.is_some() || request.push.is_some();
+    let many = request.contact_nodes.is_some() || request.pushes.is_some();
+    match (single, many) {
+        (true, true) => Err(ApiError::invalid_argument(
+            "give either `contact_node` + `push` or `contact_nodes` + `pushes`, not both",
+        )),
+        (false, false) => Err(ApiError::invalid_argument(
+            "missing the action: give `contact_node` and `push` (or `contact_nodes` and `pushes`)",
+        )),
+        (true, false) => {
+            let (Some(node), Some(push)) = (request.contact_node, &request.push) else {
+                return Err(ApiError::invalid_argument(
+                    "`contact_node` and `push` go together",
+                ));
+            };
+            Ok(vec![(
+                check_contact(node, tree, "contact_node")?,
+                check_push(vector3(push, "push")?, "push")?,
+            )])
+        }
+        (false, true) => {
+            let (Some(nodes), Some(pushes)) = (&request.contact_nodes, &request.pushes) else {
+                return Err(ApiError::invalid_argument(
+                    "`contact_nodes` and `pushes` go together",
+                ));
+            };
+            if nodes.len() != pushes.len() {
+                return Err(ApiError::invalid_argument(format!(
+                    "{} contact nodes but {} pushes",
+                    nodes.len(),
+                    pushes.len()
+                ))
+                .with_details(json!({ "field": "pushes" })));
+            }
+            if nodes.is_empty() {
+                return Err(ApiError::invalid_argument("`contact_nodes` is empty"));
+            }
+            if nodes.len() > max_actions {
+                return Err(ApiError::too_large(format!(
+                    "{} actions in one call; this server accepts at most {max_actions}",
+                    nodes.len()
+                ))
+                .with_details(json!({ "field": "pushes", "max_actions": max_actions })));
+            }
+            nodes
+                .iter()
+                .zip(pushes)
+                .enumerate()
+                .map(|(k, (&node, push))| {
+                    let field = format!("pushes[{k}]");
+                    Ok((
+                        check_contact(node, tree, &format!("contact_nodes[{k}]"))?,
+                        check_push(vector3(push, &field)?, &field)?,
+                    ))
+                })
+                .collect()
+        }
+    }
+}
+
+fn inference_error(e: crate::infer::InferError) -> ApiError {
+    ApiError::internal(format!("inference failed: {e}"))
+}
+
+pub async fn forward(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<ForwardRequest>,
+) -> Result<axum::Json<ForwardResponse>, ApiError> {
+    let model = state.model_for(Task::Forward)?;
+    let tree = request.tree.to_tree(state.limits.max_nodes)?;
+    let actions = actions(&request, &tree, state.limits.max_actions)?;
+    ::metrics::histogram!("treemanip_actions_per_request", "route" => "/v1/forward")
+        .record(actions.len() as f64);
+    let info = ModelInfo::of(&model, &state);
+    let response = state
+        .run_blocking("/v1/forward", move || {
+            let started = std::time::Instant::now();
+            let predicted =
+                predict_displacements(&model, &tree, &actions).map_err(inference_error)?;
+            ::metrics::histogram!("treemanip_inference_seconds", "model" => model.name.clone())
+                .record(started.elapsed().as_secs_f64());
+            let xyz = |v: Vector3<f64>| [v.x, v.y, v.z];
+            Ok(ForwardResponse {
+                positions: predicted
+                    .iter()
+                    .map(|d| {
+                        d.iter()
+                            .zip(tree.positions())
+                            .map(|(d, p)| xyz(p.coords + d))
+                            .collect()
+                    })
+                    .collect(),
+                displacements: predicted
+                    .iter()
+                    .map(|d| d.iter().map(|v| xyz(*v)).collect())
+                    .collect(),
+                model: info,
+            })
+        })
+        .await?;
+    Ok(axum::Json(response))
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PolicyRequest {
+    pub tree: TreeJson,
+    /// Where each node should end up (m).
+    pub target_positions: Vec<Vec<f64>>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PolicyResponse {
+    /// Every non-root node, by affordance, descending.
+    pub candidates: Vec<Candidate>,
+    pub model: ModelInfo,
+}
+
+pub async fn policy(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<PolicyRequest>,
+) -> Result<axum::Json<PolicyResponse>, ApiError> {
+    let model = state.model_for(Task::Policy)?;
+    let tree = request.tree.to_tree(state.limits.max_nodes)?;
+    let targets = targets(&request.target_positions, &tree)?;
+    let info = ModelInfo::of(&model, &state);
+    let response = state
+        .run_blocking("/v1/policy", move || {
+            let started = std::time::Instant::now();
+            let candidates = rank_candidates(&model, &tree, &targets).map_err(inference_error)?;
+            ::metrics::histogram!("treemanip_inference_seconds", "model" => model.name.clone())
+                .record(started.elapsed().as_secs_f64());
+            Ok(PolicyResponse {
+                candidates,
+                model: info,
+            })
+        })
+        .await?;
+    Ok(axum::Json(response))
+}

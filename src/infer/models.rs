@@ -1,0 +1,207 @@
+//! The models a process serves: loaded once from a directory, each with a
+//! small pool of sessions so concurrent requests do not queue on one lock,
+//! and the two questions the service answers with them (what happens under
+//! these pushes; which node to push, and how).
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use nalgebra::{Point3, Vector3};
+use serde::Serialize;
+
+use super::{Backend, InferError, OnnxModel, init_backend, read_metadata};
+use crate::graph::{FEATURE_LAYOUT_VERSION, Task, batch, encode_forward, encode_policy};
+use crate::nn::gnn::GnnOutput;
+use crate::tree::Tree;
+
+/// Graphs per inference call; larger requests are split.
+pub const MAX_BATCH: usize = 64;
+
+/// One model file and its sessions.
+pub struct ServedModel {
+    /// File stem: `forward_gnn`, `policy_pointnet`, ...
+    pub name: String,
+    pub task: Task,
+    pub file: PathBuf,
+    pub metadata: Vec<(String, String)>,
+    sessions: Vec<Mutex<OnnxModel>>,
+}
+
+impl ServedModel {
+    pub fn load(path: &Path, sessions: usize) -> Result<Self, InferError> {
+        let bytes = std::fs::read(path)
+            .map_err(|e| InferError::Load(format!("reading {}: {e}", path.display())))?;
+        let metadata = read_metadata(&bytes)
+            .map_err(|e| InferError::Load(format!("{}: {e}", path.display())))?;
+        let layout = metadata
+            .iter()
+            .find(|(k, _)| k == "feature_layout_version")
+            .map(|(_, v)| v.as_str());
+        if layout != Some(FEATURE_LAYOUT_VERSION.to_string().as_str()) {
+            return Err(InferError::Load(format!(
+                "{}: feature layout version {layout:?}, this build encodes version {FEATURE_LAYOUT_VERSION}",
+                path.display()
+            )));
+        }
+        let sessions = (0..sessions.max(1))
+            .map(|_| OnnxModel::with_threads(&bytes, metadata.clone(), Some(1)).map(Mutex::new))
+            .collect::<Result<Vec<_>, _>>()?;
+        let task = sessions[0].lock().expect("fresh lock").task();
+        Ok(Self {
+            name: path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            task,
+            file: path.to_path_buf(),
+            metadata,
+            sessions,
+        })
+    }
+
+    pub fn meta(&self, key: &str) -> Option<&str> {
+        self.metadata
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// Runs a batch on a free session (or waits for the first one).
+    pub fn run(&self, b: &crate::graph::Batch) -> Result<GnnOutput, InferError> {
+        for s in &self.sessions {
+            if let Ok(mut session) = s.try_lock() {
+                return session.run(b);
+            }
+        }
+        let mut session = self.sessions[0]
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        session.run(b)
+    }
+}
+
+/// Every model found in a directory.
+pub struct ModelSet {
+    pub backend: Backend,
+    pub dir: PathBuf,
+    pub models: Vec<ServedModel>,
+}
+
+impl ModelSet {
+    /// Loads every `*.onnx` in `dir` (sorted by name).
+    pub fn load_dir(
+        dir: &Path,
+        library: Option<&Path>,
+        sessions: usize,
+    ) -> Result<Self, InferError> {
+        let backend = init_backend(library)?;
+        let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+            .map_err(|e| InferError::Load(format!("reading {}: {e}", dir.display())))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "onnx"))
+            .collect();
+        files.sort();
+        let models = files
+            .iter()
+            .map(|p| ServedModel::load(p, sessions))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            backend,
+            dir: dir.to_path_buf(),
+            models,
+        })
+    }
+
+    pub fn get(&self, name: &str) -> Option<&ServedModel> {
+        self.models.iter().find(|m| m.name == name)
+    }
+
+    /// The model that answers a task by default: the GNN.
+    pub fn default_for(&self, task: Task) -> Option<&ServedModel> {
+        self.get(&format!("{}_gnn", task.name()))
+    }
+}
+
+/// Predicted displacements Δp (m) per node, for each (contact node, push).
+pub fn predict_displacements(
+    model: &ServedModel,
+    tree: &Tree,
+    actions: &[(usize, Vector3<f64>)],
+) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
+    let n = tree.len();
+    let mut out = Vec::with_capacity(actions.len());
+    for chunk in actions.chunks(MAX_BATCH) {
+        let graphs = chunk
+            .iter()
+            .map(|(node, push)| encode_forward(tree, *node, push))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| InferError::Run(e.to_string()))?;
+        let b = batch(&graphs).map_err(|e| InferError::Run(e.to_string()))?;
+        let y = model.run(&b)?;
+        for k in 0..chunk.len() {
+            out.push(
+                (0..n)
+                    .map(|j| {
+                        let v = &y.vectors[(k * n + j) * 3..(k * n + j) * 3 + 3];
+                        Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64)
+                    })
+                    .collect(),
+            );
+        }
+    }
+    Ok(out)
+}
+
+/// One node to push and how, from the contact policy.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Candidate {
+    pub node: usize,
+    /// Share of the affordance over the tree's pushable (non-root) nodes.
+    pub affordance: f64,
+    /// Gripper displacement T (m).
+    pub push: [f64; 3],
+    /// 1 = most promising.
+    pub rank: usize,
+}
+
+/// All non-root nodes ranked by affordance (renormalised over them, so
+/// the root, which cannot be pushed, is never a candidate).
+pub fn rank_candidates(
+    model: &ServedModel,
+    tree: &Tree,
+    targets: &[Point3<f64>],
+) -> Result<Vec<Candidate>, InferError> {
+    let g = encode_policy(tree, targets).map_err(|e| InferError::Run(e.to_string()))?;
+    let b = batch(std::slice::from_ref(&g)).map_err(|e| InferError::Run(e.to_string()))?;
+    let y = model.run(&b)?;
+    let affordance = y
+        .affordance
+        .ok_or_else(|| InferError::Run(format!("{} is not a policy model", model.name)))?;
+    let n = tree.len();
+    let total: f64 = (1..n).map(|j| affordance[j] as f64).sum();
+    let mut candidates: Vec<Candidate> = (1..n)
+        .map(|j| Candidate {
+            node: j,
+            affordance: if total > 0.0 {
+                affordance[j] as f64 / total
+            } else {
+                1.0 / (n - 1) as f64
+            },
+            push: [
+                y.vectors[j * 3] as f64,
+                y.vectors[j * 3 + 1] as f64,
+                y.vectors[j * 3 + 2] as f64,
+            ],
+            rank: 0,
+        })
+        .collect();
+    candidates.sort_by(|a, b| {
+        b.affordance
+            .total_cmp(&a.affordance)
+            .then(a.node.cmp(&b.node))
+    });
+    for (k, c) in candidates.iter_mut().enumerate() {
+        c.rank = k + 1;
+    }
+    Ok(candidates)
+}
