@@ -11,7 +11,6 @@ use super::json::ApiJson;
 use super::tree_json::TreeJson;
 use crate::graph::Task;
 use crate::infer::models::{Candidate, ServedModel, predict_displacements, rank_candidates};
-use crate::sim::MAX_PUSH_LENGTH;
 use crate::tree::Tree;
 
 /// Which model answered, and on what.
@@ -80,10 +79,14 @@ pub fn vector3(values: &[f64], field: &str) -> Result<Vector3<f64>, ApiError> {
     Ok(v)
 }
 
+/// Longest push the forward model is asked about. It was trained on pushes
+/// of 5–15 cm; past twice that its answers would be pure extrapolation.
+pub const MAX_MODEL_PUSH: f64 = 0.3;
+
 fn check_push(push: Vector3<f64>, field: &str) -> Result<Vector3<f64>, ApiError> {
-    if push.norm() > MAX_PUSH_LENGTH {
+    if push.norm() > MAX_MODEL_PUSH {
         return Err(ApiError::invalid_argument(format!(
-            "`{field}` is {:.3} m long; pushes are at most {MAX_PUSH_LENGTH} m",
+            "`{field}` is {:.3} m long; the forward model answers for pushes up to {MAX_MODEL_PUSH} m (it was trained on 0.05–0.15 m)",
             push.norm()
         ))
         .with_details(json!({ "field": field })));
