@@ -22,14 +22,15 @@ const SECONDS: f64 = 6.0;
 
 /// One keep-alive HTTP/1.1 POST; returns the status.
 fn post(stream: &mut BufReader<TcpStream>, path: &str, body: &[u8]) -> u16 {
-    let s = stream.get_mut();
-    write!(
-        s,
+    // One write per request: separate small writes meet Nagle's algorithm
+    // and delayed ACKs, which add ~40 ms to every call.
+    let mut request = format!(
         "POST {path} HTTP/1.1\r\nHost: bench\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n",
         body.len()
     )
-    .unwrap();
-    s.write_all(body).unwrap();
+    .into_bytes();
+    request.extend_from_slice(body);
+    stream.get_mut().write_all(&request).unwrap();
     let mut status_line = String::new();
     stream.read_line(&mut status_line).unwrap();
     let status = status_line
@@ -94,7 +95,9 @@ fn main() {
                     .map(|_| {
                         let (addr, body) = (&addr, &body);
                         scope.spawn(move || {
-                            let mut stream = BufReader::new(TcpStream::connect(addr).unwrap());
+                            let socket = TcpStream::connect(addr).unwrap();
+                            socket.set_nodelay(true).unwrap();
+                            let mut stream = BufReader::new(socket);
                             let mut times = Vec::new();
                             while Instant::now() < deadline {
                                 let t = Instant::now();
