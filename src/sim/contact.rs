@@ -97,6 +97,16 @@ impl Contact {
         }
     }
 
+    /// The same hold with the gripper only `fraction` of the way along
+    /// `push` (the last part of the push not yet made): for following the
+    /// push path by continuation.
+    pub fn partway(&self, push: &Vector3<f64>, fraction: f64) -> Self {
+        Self {
+            target: self.target - push * (1.0 - fraction),
+            ..self.clone()
+        }
+    }
+
     pub fn rows(&self) -> usize {
         match self.hold {
             Hold::OnAxis => 2,

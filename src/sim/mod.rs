@@ -100,12 +100,14 @@ pub enum SimError {
     )]
     LostBranch { slide: f64, length: f64 },
     #[error(
-        "node {node} cannot be carried {distance:.4} m from the root: the branches on its path reach {reach:.4} m at most"
+        "node {node} cannot be carried {distance:.4} m from the root: the branches on its path reach from {inner:.4} to {reach:.4} m"
     )]
     OutOfReach {
         node: usize,
         distance: f64,
         reach: f64,
+        /// Closest distance to the root the path can fold to (m).
+        inner: f64,
     },
     #[error("the push would turn a joint by {angle:.2} rad, folding the tree")]
     OverRotated { angle: f64 },
@@ -162,7 +164,7 @@ pub fn simulate(tree: &Tree, push: &Push, config: &SimConfig) -> Result<PushOutc
     if contact.hold == Hold::AtNode {
         check_reach(tree, &chain, &contact)?;
     }
-    let mut solved = solve_contact(&chain, &contact, &config.solver)?;
+    let mut solved = solve_contact(&chain, &contact, &push.vector, &config.solver)?;
     if contact.hold == Hold::OnAxis {
         let length = tree.branch(push.node).expect("non-root").length;
         let slide = contact.slide(&chain, &chain.pose(&solved.theta));
@@ -170,7 +172,7 @@ pub fn simulate(tree: &Tree, push: &Push, config: &SimConfig) -> Result<PushOutc
             // Slid to the fork: the child branches stop the slot there.
             let caught = contact.caught_at_node();
             check_reach(tree, &chain, &caught)?;
-            solved = solve_contact(&chain, &caught, &config.solver)?;
+            solved = solve_contact(&chain, &caught, &push.vector, &config.solver)?;
         } else if !(0.0..=length).contains(&slide) {
             return Err(SimError::LostBranch { slide, length });
         }
@@ -211,21 +213,27 @@ pub fn simulate(tree: &Tree, push: &Push, config: &SimConfig) -> Result<PushOutc
     })
 }
 
-/// An at-node hold farther from the root than the path's branches reach
-/// cannot be realised by any joint angles.
+/// An at-node hold is realisable only at a distance from the root that the
+/// path's rigid branches can span: at most their total length, and at
+/// least the longest one minus all the others (a single branch reaches only
+/// the sphere of its own length). Outside that annulus no joint angles
+/// satisfy the contact, and the solver would only report that it failed.
 fn check_reach(tree: &Tree, chain: &PathChain, contact: &Contact) -> Result<(), SimError> {
-    let reach: f64 = chain
+    let lengths = chain
         .nodes
         .iter()
-        .map(|&a| tree.branch(a).expect("non-root").length)
-        .sum();
+        .map(|&a| tree.branch(a).expect("non-root").length);
+    let (reach, longest) = lengths.fold((0.0f64, 0.0f64), |(sum, max), l| (sum + l, max.max(l)));
+    let inner = (2.0 * longest - reach).max(0.0);
     let distance = (contact.target - tree.position(0)).norm();
-    if distance > reach {
+    // Within 1e-9 m of a boundary the solve decides.
+    if distance > reach + 1e-9 || distance < inner - 1e-9 {
         let node = *chain.nodes.last().expect("non-empty chain");
         return Err(SimError::OutOfReach {
             node,
             distance,
             reach,
+            inner,
         });
     }
     Ok(())
@@ -240,9 +248,16 @@ struct Solved {
 
 /// Minimises the elastic energy under `contact`, in stiffness-scaled
 /// coordinates x = √K θ so that the energy is ½|x|².
+///
+/// The solve starts at rest. Where that fails (a straight trunk pushed
+/// along itself starts on a singular Jacobian, λ ≈ 1e5, and Newton wanders
+/// instead of buckling it), it follows the push path instead, as the
+/// gripper does: the hold is moved in steps along `push`, each solve
+/// warm-started from the previous state (4 steps, then 16).
 fn solve_contact(
     chain: &PathChain,
     contact: &Contact,
+    push: &Vector3<f64>,
     options: &SolverOptions,
 ) -> Result<Solved, SimError> {
     let inv_sqrt_k: Vec<f64> = chain.stiffness.iter().map(|k| 1.0 / k.sqrt()).collect();
@@ -252,15 +267,34 @@ fn solve_contact(
             .map(|(i, v)| v * inv_sqrt_k[i / 3])
             .collect()
     };
-    let eval = |x: &DVector<f64>| -> (DVector<f64>, DMatrix<f64>) {
-        let pose = chain.pose(&to_theta(x));
-        let (c, mut jac) = contact.evaluate(chain, &pose);
-        for col in 0..jac.ncols() {
-            jac.column_mut(col).scale_mut(inv_sqrt_k[col / 3]);
-        }
-        (c, jac)
+    let solve_for = |contact: &Contact, start: DVector<f64>| {
+        let eval = |x: &DVector<f64>| -> (DVector<f64>, DMatrix<f64>) {
+            let pose = chain.pose(&to_theta(x));
+            let (c, mut jac) = contact.evaluate(chain, &pose);
+            for col in 0..jac.ncols() {
+                jac.column_mut(col).scale_mut(inv_sqrt_k[col / 3]);
+            }
+            (c, jac)
+        };
+        solver::solve_from(start, &eval, options)
     };
-    let solution = solver::solve(3 * chain.len(), &eval, options).map_err(|e| match e {
+    let n = 3 * chain.len();
+    let mut result = solve_for(contact, DVector::zeros(n));
+    for steps in [4usize, 16] {
+        if !matches!(result, Err(SolveError::NotConverged { .. })) {
+            break;
+        }
+        let mut x = DVector::zeros(n);
+        result = (1..=steps)
+            .try_fold(None, |_, k| {
+                let partway = contact.partway(push, k as f64 / steps as f64);
+                let step = solve_for(&partway, x.clone())?;
+                x = step.x.clone();
+                Ok(Some(step))
+            })
+            .map(|s| s.expect("at least one step"));
+    }
+    let solution = result.map_err(|e| match e {
         SolveError::NotConverged {
             iterations,
             constraint_residual,
