@@ -3,7 +3,6 @@
 //!
 //!     cargo bench --bench learn                      # tract
 //!     ORT_DYLIB_PATH=$(scripts/fetch-onnxruntime) cargo bench --bench learn
-//!     cargo bench --bench learn --features x86-v4    # AVX-512 training kernels
 //!
 //! Inference runs the committed `models/*.onnx` single-threaded, one graph
 //! per call. Prints numbers; asserts nothing.
@@ -64,8 +63,33 @@ fn paper_model(task: Task, arch: Arch, gs: &[GraphInput]) -> ModelWeights {
     }
 }
 
+/// The f32 GEMM peak of burn's Flex backend on this machine: a 1024³
+/// matmul on all cores, best of several runs (GFLOP/s).
+fn gemm_peak() -> f64 {
+    use burn::tensor::{Device, Distribution, Tensor};
+    let device = Device::flex();
+    let a = Tensor::<2>::random([1024, 1024], Distribution::Default, &device);
+    let b = Tensor::<2>::random([1024, 1024], Distribution::Default, &device);
+    let mut best = f64::INFINITY;
+    for _ in 0..8 {
+        let t = Instant::now();
+        let c = a.clone().matmul(b.clone());
+        std::hint::black_box(c.into_data());
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    2.0 * 1024f64.powi(3) / best / 1e9
+}
+
 fn training() {
-    println!("training throughput (batch 64, one tree size per batch, Adam step included)");
+    let peak = gemm_peak();
+    println!(
+        "f32 GEMM peak (burn Flex, 1024³, {} threads, best of 8): {peak:.1} GFLOP/s",
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
+    println!(
+        "training throughput (batch 128 as the recipe, one tree size per batch, Adam step included)"
+    );
+    println!("  GNN step FLOPs = 3 × forward, forward counted from the layer shapes");
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     for (task, arch) in [
         (Task::Forward, Arch::Gnn),
@@ -74,22 +98,33 @@ fn training() {
     ] {
         for n in [15usize, 30] {
             let tree = generate(n, 5, &ScaParams::default()).unwrap();
-            let gs = graphs(task, &tree, 64, &mut rng);
+            let gs = graphs(task, &tree, 128, &mut rng);
             let weights = paper_model(task, arch, &gs);
             let b = batch(&gs).unwrap();
             let targets = Targets {
-                displacement: (0..64 * n * 3).map(|k| (k % 7) as f32 * 0.01).collect(),
-                contact: (0..64).map(|k| 1 + k % (n - 1)).collect(),
-                push: (0..64 * 3).map(|k| (k % 5) as f32 * 0.02).collect(),
+                displacement: (0..128 * n * 3).map(|k| (k % 7) as f32 * 0.01).collect(),
+                contact: (0..128).map(|k| 1 + k % (n - 1)).collect(),
+                push: (0..128 * 3).map(|k| (k % 5) as f32 * 0.02).collect(),
             };
             let _ = time_steps(&weights, &b, &targets, 1); // warm-up
             let steps = if arch == Arch::Gnn { 4 } else { 20 };
             let (prep, secs) = time_steps(&weights, &b, &targets, steps);
+            let samples_per_second = (128 * steps) as f64 / secs;
+            let compute = match &weights {
+                ModelWeights::Gnn(w) => {
+                    let gflops = samples_per_second * 3.0 * w.flops_per_graph(n) / 1e9;
+                    format!(
+                        "  {gflops:.1} GFLOP/s = {:.0} % of peak",
+                        100.0 * gflops / peak
+                    )
+                }
+                ModelWeights::PointNet(_) => String::new(),
+            };
             println!(
-                "  {:<8} {:<9} N={n:<3} {:>7.1} samples/s  ({:.0} ms/step, input prep {:.1} ms)",
+                "  {:<8} {:<9} N={n:<3} {:>7.1} samples/s  ({:.0} ms/step, input prep {:.1} ms){compute}",
                 task.name(),
                 arch.name(),
-                (64 * steps) as f64 / secs,
+                samples_per_second,
                 1e3 * secs / steps as f64,
                 1e3 * prep
             );

@@ -89,6 +89,38 @@ impl GraphInput {
         let d = self.task.node_dim();
         &self.nodes[j * d..(j + 1) * d]
     }
+
+    /// The same graph for the tree (and push, or target) turned by `angle`
+    /// (rad) about the vertical axis z through the root. Every vector
+    /// feature turns with it (Δp; the push T; the target offsets p′ − p);
+    /// v and K_s are invariant. Gravity is off and joints are isotropic, so
+    /// this is an exact symmetry of the simulator: training augments with it.
+    pub fn rotate_about_vertical(&mut self, angle: f64) {
+        let (sin, cos) = angle.sin_cos();
+        let edges = self.edges.chunks_exact_mut(EDGE_DIM);
+        let nodes = match self.task {
+            Task::Forward => None,
+            Task::Policy => Some(self.nodes.chunks_exact_mut(3)),
+        };
+        let global = match self.task {
+            Task::Forward => Some(self.global.chunks_exact_mut(3)),
+            Task::Policy => None,
+        };
+        for v in edges
+            .chain(nodes.into_iter().flatten())
+            .chain(global.into_iter().flatten())
+        {
+            rotate_xy(v, sin, cos);
+        }
+    }
+}
+
+/// Turns the first two components of `v` (x, y) by the angle with the
+/// given sine and cosine; z stays.
+pub fn rotate_xy(v: &mut [f32], sin: f64, cos: f64) {
+    let (x, y) = (v[0] as f64, v[1] as f64);
+    v[0] = (cos * x - sin * y) as f32;
+    v[1] = (sin * x + cos * y) as f32;
 }
 
 /// K_s of the branch joining i and j (either may be the parent), or 0.

@@ -18,6 +18,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::input::gnn_input;
+pub use super::input::{Connectivity, EdgeAttributes};
 use crate::graph::{Batch, EDGE_DIM, FeatureStats, Task};
 
 /// y = W x + b, W stored row-major as out × in.
@@ -111,92 +112,6 @@ impl GnnConfig {
     }
 }
 
-/// The edge-attribute groups of e_ij = [Δp, v, K_s]. A dropped group is
-/// zeroed after normalisation, which is the same as the encoder never
-/// seeing it; the input layout stays the same for every model.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub struct EdgeAttributes {
-    pub delta_p: bool,
-    pub orientation: bool,
-    pub stiffness: bool,
-}
-
-impl Default for EdgeAttributes {
-    fn default() -> Self {
-        Self {
-            delta_p: true,
-            orientation: true,
-            stiffness: true,
-        }
-    }
-}
-
-impl EdgeAttributes {
-    /// Multiplier per edge column (1 kept, 0 dropped).
-    pub fn column_mask(&self) -> [f32; EDGE_DIM] {
-        let f = |b: bool| if b { 1.0 } else { 0.0 };
-        let d = f(self.delta_p);
-        [d, d, d, f(self.orientation), f(self.stiffness)]
-    }
-
-    /// "dp+v+ks", "v+ks", "none", ...
-    pub fn label(&self) -> String {
-        let parts: Vec<&str> = [
-            (self.delta_p, "dp"),
-            (self.orientation, "v"),
-            (self.stiffness, "ks"),
-        ]
-        .iter()
-        .filter(|(on, _)| *on)
-        .map(|(_, name)| *name)
-        .collect();
-        if parts.is_empty() {
-            "none".to_owned()
-        } else {
-            parts.join("+")
-        }
-    }
-}
-
-impl std::str::FromStr for EdgeAttributes {
-    type Err = String;
-
-    /// Parses `label()` output: "dp+v+ks", "dp+ks", "none", ...
-    fn from_str(s: &str) -> Result<Self, String> {
-        let mut out = Self {
-            delta_p: false,
-            orientation: false,
-            stiffness: false,
-        };
-        if s == "none" {
-            return Ok(out);
-        }
-        for part in s.split('+') {
-            match part.trim() {
-                "dp" => out.delta_p = true,
-                "v" => out.orientation = true,
-                "ks" => out.stiffness = true,
-                other => {
-                    return Err(format!(
-                        "unknown edge attribute {other:?} (expected dp, v, ks joined by +, or none)"
-                    ));
-                }
-            }
-        }
-        Ok(out)
-    }
-}
-
-/// Message passing over every ordered node pair (the paper) or only over
-/// the tree's branches, in both directions (the ablation's "partial").
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Connectivity {
-    #[default]
-    Full,
-    Branches,
-}
-
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Block {
     /// f_e on [g, n_i, n_j, e_ij].
@@ -264,6 +179,38 @@ impl GnnWeights {
             vector_head,
             affordance_head,
         }
+    }
+}
+
+impl Mlp {
+    /// Multiply-adds × 2 of one row through the three layers.
+    pub fn flops_per_row(&self) -> f64 {
+        self.layers
+            .iter()
+            .map(|l| 2.0 * (l.inputs * l.outputs) as f64)
+            .sum()
+    }
+}
+
+impl GnnWeights {
+    /// FLOPs of one forward pass on one graph of `n` nodes, counted from the
+    /// layer shapes as dense matrix products (the edge MLPs run on all N²
+    /// pairs, the node MLPs and heads on N rows, the global encoder on one).
+    /// A training step (forward and backward) costs about three times this.
+    pub fn flops_per_graph(&self, n: usize) -> f64 {
+        let (n, e) = (n as f64, (n * n) as f64);
+        let mut flops =
+            n * self.node_encoder.flops_per_row() + e * self.edge_encoder.flops_per_row();
+        flops += self.global_encoder.as_ref().map_or(0.0, Mlp::flops_per_row);
+        for block in &self.blocks {
+            flops += e * block.edge.flops_per_row() + n * block.node.flops_per_row();
+        }
+        flops += n * self.vector_head.flops_per_row();
+        flops
+            + n * self
+                .affordance_head
+                .as_ref()
+                .map_or(0.0, Mlp::flops_per_row)
     }
 }
 

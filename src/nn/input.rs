@@ -4,9 +4,9 @@
 //! reference forward passes and by training; the ONNX graphs compute the
 //! same thing from raw inputs (the parity tests hold them together).
 
-use crate::graph::{Batch, EDGE_DIM, FeatureStats};
+use serde::{Deserialize, Serialize};
 
-use super::gnn::{Connectivity, EdgeAttributes};
+use crate::graph::{Batch, EDGE_DIM, FeatureStats};
 
 /// Normalised dense inputs of one batch (f32, row-major).
 #[derive(Debug, Clone, PartialEq)]
@@ -76,4 +76,90 @@ pub fn gnn_input(
         edge_mask,
         node_mask: batch.mask.clone(),
     }
+}
+
+/// The edge-attribute groups of e_ij = [Δp, v, K_s]. A dropped group is
+/// zeroed after normalisation, which is the same as the encoder never
+/// seeing it; the input layout stays the same for every model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct EdgeAttributes {
+    pub delta_p: bool,
+    pub orientation: bool,
+    pub stiffness: bool,
+}
+
+impl Default for EdgeAttributes {
+    fn default() -> Self {
+        Self {
+            delta_p: true,
+            orientation: true,
+            stiffness: true,
+        }
+    }
+}
+
+impl EdgeAttributes {
+    /// Multiplier per edge column (1 kept, 0 dropped).
+    pub fn column_mask(&self) -> [f32; EDGE_DIM] {
+        let f = |b: bool| if b { 1.0 } else { 0.0 };
+        let d = f(self.delta_p);
+        [d, d, d, f(self.orientation), f(self.stiffness)]
+    }
+
+    /// "dp+v+ks", "v+ks", "none", ...
+    pub fn label(&self) -> String {
+        let parts: Vec<&str> = [
+            (self.delta_p, "dp"),
+            (self.orientation, "v"),
+            (self.stiffness, "ks"),
+        ]
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, name)| *name)
+        .collect();
+        if parts.is_empty() {
+            "none".to_owned()
+        } else {
+            parts.join("+")
+        }
+    }
+}
+
+impl std::str::FromStr for EdgeAttributes {
+    type Err = String;
+
+    /// Parses `label()` output: "dp+v+ks", "dp+ks", "none", ...
+    fn from_str(s: &str) -> Result<Self, String> {
+        let mut out = Self {
+            delta_p: false,
+            orientation: false,
+            stiffness: false,
+        };
+        if s == "none" {
+            return Ok(out);
+        }
+        for part in s.split('+') {
+            match part.trim() {
+                "dp" => out.delta_p = true,
+                "v" => out.orientation = true,
+                "ks" => out.stiffness = true,
+                other => {
+                    return Err(format!(
+                        "unknown edge attribute {other:?} (expected dp, v, ks joined by +, or none)"
+                    ));
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Message passing over every ordered node pair (the paper) or only over
+/// the tree's branches, in both directions (the ablation's "partial").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Connectivity {
+    #[default]
+    Full,
+    Branches,
 }

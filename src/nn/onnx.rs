@@ -471,3 +471,20 @@ pub fn export_pointnet(weights: &PointNetWeights, metadata: &[(String, String)])
         metadata,
     )
 }
+
+/// The same model with `metadata` set: keys already present are replaced,
+/// new keys appended. For adding what a later version records (such as the
+/// model's domain) without retraining or re-exporting the weights.
+pub fn with_metadata(bytes: &[u8], metadata: &[(String, String)]) -> Result<Vec<u8>, String> {
+    let mut model = ModelProto::decode(bytes).map_err(|e| format!("not an ONNX model: {e}"))?;
+    for (key, value) in metadata {
+        match model.metadata_props.iter_mut().find(|p| &p.key == key) {
+            Some(entry) => entry.value = value.clone(),
+            None => model.metadata_props.push(StringStringEntryProto {
+                key: key.clone(),
+                value: value.clone(),
+            }),
+        }
+    }
+    Ok(model.encode_to_vec())
+}

@@ -12,7 +12,7 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use nalgebra::{Matrix4, Vector4};
 
-use super::ur5::{DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
+use super::dh::{DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
 
 /// One DH link transform Rz(θ) Tz(d) Tx(a) Rx(α).
 pub fn dh_transform(i: usize, theta: f64) -> Matrix4<f64> {

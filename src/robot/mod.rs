@@ -2,6 +2,7 @@
 //! checking against the tree, RRT* and the paper's Algorithm 1.
 
 pub mod collision;
+pub mod dh;
 pub mod ik;
 pub mod plan;
 pub mod rrt;

@@ -19,16 +19,12 @@
 use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI};
 
+pub use super::dh::{DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
 use nalgebra::{Isometry3, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
 use urdf_rs::{
     Axis, Collision, Geometry, Inertial, Joint, JointLimit, JointType, Link, LinkName, Pose, Robot,
     Vec3,
 };
-
-/// Universal Robots' UR5 DH parameters (m, rad).
-pub const DH_D: [f64; 6] = [0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823];
-pub const DH_A: [f64; 6] = [0.0, -0.425, -0.39225, 0.0, 0.0, 0.0];
-pub const DH_ALPHA: [f64; 6] = [FRAC_PI_2, 0.0, 0.0, FRAC_PI_2, -FRAC_PI_2, 0.0];
 
 pub const JOINT_NAMES: [&str; 6] = [
     "shoulder_pan_joint",
@@ -47,16 +43,6 @@ pub const LINK_NAMES: [&str; 6] = [
     "wrist_1_link",
     "wrist_2_link",
     "wrist_3_link",
-];
-
-/// Joint position limits (rad): ±2π, the elbow ±π (it would hit itself).
-pub const JOINT_LIMITS: [(f64, f64); 6] = [
-    (-2.0 * PI, 2.0 * PI),
-    (-2.0 * PI, 2.0 * PI),
-    (-PI, PI),
-    (-2.0 * PI, 2.0 * PI),
-    (-2.0 * PI, 2.0 * PI),
-    (-2.0 * PI, 2.0 * PI),
 ];
 
 /// Joint speed limits (rad/s): the UR5's 180°/s.

@@ -6,9 +6,13 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 use treemanip::graph::{FEATURE_LAYOUT_VERSION, Task};
+use treemanip::nn::domain;
 use treemanip::nn::gnn::{Connectivity, EdgeAttributes};
 use treemanip::nn::model::Arch;
-use treemanip::nn::train::{StopReason, TrainConfig, TrainEvent, read_best, read_state, train};
+use treemanip::nn::train::{
+    ResumeOptions, Schedule, StopReason, TrainConfig, TrainEvent, read_best, read_state, resume,
+    train,
+};
 
 use crate::progress;
 use crate::trees::{NodeSizes, parse_sizes};
@@ -40,6 +44,12 @@ pub enum ConnectivityArg {
     Branches,
 }
 
+#[derive(Clone, Copy, ValueEnum)]
+enum ScheduleArg {
+    Cosine,
+    Plateau,
+}
+
 #[derive(Args)]
 pub struct TrainArgs {
     /// Which model: the forward model or the contact policy.
@@ -53,8 +63,9 @@ pub struct TrainArgs {
     /// Checkpoint directory (created; must be new unless --resume).
     #[arg(long)]
     out: PathBuf,
-    /// Continue the checkpoint in --out (other settings come from it;
-    /// --epochs and --minutes still apply).
+    /// Continue the checkpoint in --out exactly where it stopped (every
+    /// other setting comes from it; --epochs re-plans, --minutes and
+    /// --data still apply).
     #[arg(long)]
     resume: bool,
     /// Training tree sizes (the paper: 11,13,15,17,19).
@@ -63,15 +74,26 @@ pub struct TrainArgs {
     /// Use at most this many episodes per size.
     #[arg(long)]
     limit_per_size: Option<usize>,
-    #[arg(long, default_value_t = 100)]
-    epochs: usize,
+    /// Planned epochs (default 120; the cosine schedule spans them).
+    #[arg(long)]
+    epochs: Option<usize>,
     /// Wall-clock budget: stop (with a resumable checkpoint) after this many minutes.
     #[arg(long)]
     minutes: Option<f64>,
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 128)]
     batch_size: usize,
+    /// Initial learning rate.
     #[arg(long, default_value_t = 1e-3)]
     lr: f64,
+    /// Final learning rate (cosine) or floor (plateau).
+    #[arg(long, default_value_t = 1e-5)]
+    min_lr: f64,
+    /// Learning-rate schedule.
+    #[arg(long, value_enum, default_value = "cosine")]
+    schedule: ScheduleArg,
+    /// Do not turn examples about the vertical axis (on by default).
+    #[arg(long)]
+    no_rotation: bool,
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// GNN: graph2graph layers.
@@ -97,9 +119,17 @@ pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
     let mut config = TrainConfig::paper(task, arch, args.data.clone());
     config.sizes = args.sizes.0.clone();
     config.limit_per_size = args.limit_per_size;
-    config.epochs = args.epochs;
+    if let Some(epochs) = args.epochs {
+        config.epochs = epochs;
+    }
     config.batch_size = args.batch_size;
     config.learning_rate = args.lr;
+    config.min_learning_rate = args.min_lr;
+    config.schedule = match args.schedule {
+        ScheduleArg::Cosine => Schedule::Cosine,
+        ScheduleArg::Plateau => Schedule::Plateau,
+    };
+    config.augment_rotation = !args.no_rotation;
     config.seed = args.seed;
     config.layers = args.layers;
     config.hidden = args.hidden;
@@ -110,6 +140,7 @@ pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
     };
     config.command = std::env::args().collect::<Vec<_>>().join(" ");
     anyhow::ensure!(config.batch_size > 0, "--batch-size must be positive");
+    anyhow::ensure!(config.epochs > 0, "--epochs must be positive");
     let deadline = args
         .minutes
         .map(|m| Instant::now() + Duration::from_secs_f64(m.max(0.0) * 60.0));
@@ -145,7 +176,16 @@ pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
             );
         }
     };
-    let (state, reason) = train(config, &args.out, args.resume, deadline, &mut on_event)?;
+    let (state, reason) = if args.resume {
+        let options = ResumeOptions {
+            epochs: args.epochs,
+            data: Some(args.data.clone()),
+            command: config.command.clone(),
+        };
+        resume(&args.out, options, deadline, &mut on_event)?
+    } else {
+        train(config, &args.out, deadline, &mut on_event)?
+    };
     bar.finish_and_clear();
     let best = state
         .best
@@ -257,6 +297,12 @@ fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
             .to_string(),
         ),
         ("training_command".into(), command_line(&state.config.command)),
+        (
+            "training_commands".into(),
+            serde_json::to_string(
+                &state.commands.iter().map(|c| command_line(c)).collect::<Vec<_>>(),
+            )?,
+        ),
         ("training_config".into(), serde_json::to_string(&state.config)?),
         ("seed".into(), state.config.seed.to_string()),
         ("git_commit".into(), git_commit()),
@@ -264,8 +310,19 @@ fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
             "training".into(),
             serde_json::json!({
                 "epochs": state.epoch,
+                "planned_epochs": state.config.epochs,
+                "recipe": {
+                    "schedule": state.config.schedule,
+                    "learning_rate": state.config.learning_rate,
+                    "min_learning_rate": state.config.min_learning_rate,
+                    "batch_size": state.config.batch_size,
+                    "grad_clip": state.config.grad_clip,
+                    "augment_rotation": state.config.augment_rotation,
+                },
                 "minutes": state.seconds / 60.0,
                 "samples": state.samples,
+                "samples_per_second": state.samples as f64 / state.seconds.max(1e-9),
+                "cpus": state.cpus,
                 "best_epoch": best_epoch,
             })
             .to_string(),
@@ -275,11 +332,58 @@ fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
             serde_json::to_string(&best_record)?,
         ),
         ("units".into(), "SI: metres, N·m/rad".into()),
+        domain_entry(&state.config.data, &state.config.sizes)?,
     ];
     let bytes = weights.to_onnx(&metadata);
     let path = out.join(format!("{}.onnx", weights.stem()));
     std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
     Ok(path)
+}
+
+#[derive(Args)]
+pub struct DomainArgs {
+    /// ONNX models to annotate (rewritten in place).
+    #[arg(required = true)]
+    models: Vec<PathBuf>,
+    /// The dataset they were trained on (`treemanip dataset collect`).
+    #[arg(long)]
+    data: PathBuf,
+}
+
+/// The `domain` metadata entry of a model trained on `sizes` of `data`.
+fn domain_entry(data: &Path, sizes: &[usize]) -> anyhow::Result<(String, String)> {
+    let span = domain::training_span(data, sizes)?;
+    let domain = span.domain(domain::Margin::STANDARD, domain::EVALUATED_NODES);
+    Ok((
+        "domain".to_owned(),
+        serde_json::json!({
+            "domain": domain,
+            "margin": domain::Margin::STANDARD,
+            "trained_sizes": sizes,
+        })
+        .to_string(),
+    ))
+}
+
+pub fn domain_cmd(args: DomainArgs) -> anyhow::Result<()> {
+    for path in &args.models {
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        let metadata = treemanip::infer::read_metadata(&bytes)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let config: serde_json::Value = metadata
+            .iter()
+            .find(|(k, _)| k == "training_config")
+            .and_then(|(_, v)| serde_json::from_str(v).ok())
+            .with_context(|| format!("{}: no training_config in its metadata", path.display()))?;
+        let sizes: Vec<usize> = serde_json::from_value(config["sizes"].clone())
+            .with_context(|| format!("{}: training_config has no sizes", path.display()))?;
+        let entry = domain_entry(&args.data, &sizes)?;
+        let out = treemanip::nn::onnx::with_metadata(&bytes, std::slice::from_ref(&entry))
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        std::fs::write(path, out).with_context(|| format!("writing {}", path.display()))?;
+        println!("{}: {}", path.display(), entry.1);
+    }
+    Ok(())
 }
 
 #[derive(Args)]

@@ -33,6 +33,9 @@ enum Command {
     Train(learn::TrainArgs),
     /// Write trained checkpoints as ONNX models with metadata.
     Export(learn::ExportArgs),
+    /// Record (or refresh) each model's domain in its metadata, computed from
+    /// its training split; the weights are left as they are.
+    Domain(learn::DomainArgs),
     /// Plan the UR5's motion for a push (the paper's Algorithm 1).
     Plan(plan::PlanArgs),
     /// Evaluate components the way the paper does.
@@ -60,6 +63,7 @@ fn main() -> std::process::ExitCode {
         Command::Dataset(cmd) => dataset::run(cmd),
         Command::Train(args) => learn::train_cmd(args),
         Command::Export(args) => learn::export_cmd(args),
+        Command::Domain(args) => learn::domain_cmd(args),
         Command::Plan(args) => plan::plan(args),
         Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
         Command::Eval(EvalCommand::Forward(args)) => {

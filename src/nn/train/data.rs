@@ -5,13 +5,15 @@
 use std::path::Path;
 
 use nalgebra::Vector3;
-use rand::SeedableRng;
 use rand::seq::SliceRandom;
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::dataset::{Episode, SizeData, Split, read_size_file};
 use crate::graph::stats::{Running, StatsBuilder};
-use crate::graph::{Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy};
+use crate::graph::{
+    Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy, rotate_xy,
+};
 use crate::seed::derive_seed;
 
 /// Trees whose index in their size file satisfies this are held out for
@@ -96,7 +98,31 @@ impl Examples {
 
     /// A padded batch and its targets.
     pub fn batch(&self, task: Task, ids: &[(usize, usize)]) -> (Batch, Targets) {
-        let graphs: Vec<GraphInput> = ids.iter().map(|&id| self.graph(task, id)).collect();
+        self.batch_rotated(task, ids, &[])
+    }
+
+    /// A padded batch and its targets, example k turned by `angles[k]` about
+    /// the vertical axis through its root (inputs and targets alike; see
+    /// [`GraphInput::rotate_about_vertical`]). An empty `angles` turns
+    /// nothing.
+    pub fn batch_rotated(
+        &self,
+        task: Task,
+        ids: &[(usize, usize)],
+        angles: &[f64],
+    ) -> (Batch, Targets) {
+        assert!(angles.is_empty() || angles.len() == ids.len());
+        let graphs: Vec<GraphInput> = ids
+            .iter()
+            .enumerate()
+            .map(|(k, &id)| {
+                let mut g = self.graph(task, id);
+                if let Some(&angle) = angles.get(k) {
+                    g.rotate_about_vertical(angle);
+                }
+                g
+            })
+            .collect();
         let batch = batch(&graphs).expect("non-empty batch of one task");
         let n = batch.n;
         let mut targets = Targets {
@@ -121,6 +147,12 @@ impl Examples {
             targets.contact.push(episode.push.node);
             let t: Vector3<f64> = episode.push.vector;
             targets.push.extend([t.x as f32, t.y as f32, t.z as f32]);
+            if let Some(&angle) = angles.get(k) {
+                let (sin, cos) = angle.sin_cos();
+                let d = &mut targets.displacement[k * n * 3..(k + 1) * n * 3];
+                d.chunks_exact_mut(3).for_each(|v| rotate_xy(v, sin, cos));
+                rotate_xy(&mut targets.push[k * 3..k * 3 + 3], sin, cos);
+            }
         }
         (batch, targets)
     }
@@ -176,6 +208,17 @@ impl Examples {
         }
         out.shuffle(&mut rng);
         out
+    }
+
+    /// The augmentation angles of one training batch (rad, uniform in
+    /// [0, 2π)): a function of (seed, epoch, batch) only, drawn afresh each
+    /// epoch, replayed exactly on resume.
+    pub fn rotation_angles(seed: u64, epoch: usize, batch: usize, count: usize) -> Vec<f64> {
+        let mut rng =
+            ChaCha8Rng::seed_from_u64(derive_seed(seed, &[epoch as u64, batch as u64, 0x2074]));
+        (0..count)
+            .map(|_| rng.random_range(0.0..std::f64::consts::TAU))
+            .collect()
     }
 
     /// Validation examples in batches of one size each.

@@ -1,0 +1,131 @@
+//! What training minimises and what validation measures.
+//!
+//! Losses are in normalised output units (Δp or T divided by their
+//! training-split standard deviation); validation reports the paper's
+//! metrics in metres.
+
+use burn::tensor::activation::log_softmax;
+use burn::tensor::{Device, Tensor};
+
+use super::data::{Examples, Targets};
+use super::modules::{Outputs, values};
+use super::{Net, device_input, tensor};
+use crate::graph::{Batch, Task};
+use crate::nn::model::ModelWeights;
+
+/// The loss of one batch (normalised units).
+pub(super) fn loss(
+    task: Task,
+    out: Outputs,
+    batch: &Batch,
+    targets: &Targets,
+    scale: &([f64; 3], [f64; 3]),
+    device: &Device,
+) -> Tensor<1> {
+    let (b, n) = (batch.batch, batch.n);
+    let norm = |values: &[f32]| -> Vec<f32> {
+        values
+            .iter()
+            .enumerate()
+            .map(|(k, v)| ((*v as f64 - scale.0[k % 3]) / scale.1[k % 3]) as f32)
+            .collect()
+    };
+    match task {
+        Task::Forward => {
+            let target = tensor(norm(&targets.displacement), [b, n, 3], device);
+            let mask = tensor(batch.mask.clone(), [b, n, 1], device);
+            let count = batch.mask.iter().sum::<f32>() * 3.0;
+            ((out.vectors - target).square() * mask)
+                .sum()
+                .div_scalar(count)
+        }
+        Task::Policy => {
+            let mut onehot = vec![0.0f32; b * n];
+            for (k, &c) in targets.contact.iter().enumerate() {
+                onehot[k * n + c] = 1.0;
+            }
+            let onehot = tensor(onehot, [b, n], device);
+            let mask = tensor(batch.mask.clone(), [b, n], device);
+            let logits = out.logits.expect("policy has logits");
+            let masked = logits + (mask - 1.0).mul_scalar(1e9);
+            let ce = -(log_softmax(masked, 1) * onehot.clone())
+                .sum()
+                .div_scalar(b as f32);
+            let at_contact: Tensor<2> = (out.vectors * onehot.unsqueeze_dim::<3>(2))
+                .sum_dim(1)
+                .reshape([b, 3]);
+            let target = tensor(norm(&targets.push), [b, 3], device);
+            let mse = (at_contact - target).square().mean();
+            ce + mse
+        }
+    }
+}
+
+/// Validation loss, error and accuracy over the held-out trees.
+pub(super) fn validate<M: Net>(
+    model: &M,
+    weights: &ModelWeights,
+    examples: &Examples,
+    batch_size: usize,
+) -> (f64, f64, Option<f64>) {
+    let device = Device::flex();
+    let model = model.valid();
+    let task = weights.task();
+    let scale = weights.output_scale();
+    let (mut loss_sum, mut error_sum, mut correct, mut count, mut batches) =
+        (0.0, 0.0, 0usize, 0usize, 0usize);
+    for ids in examples.validation_batches(batch_size) {
+        let (batch, targets) = examples.batch(task, &ids);
+        let out = model.run(&device_input(weights, &batch, &device));
+        let vectors = values(out.vectors.clone());
+        let logits = out.logits.clone().map(values);
+        loss_sum += loss(task, out, &batch, &targets, &scale, &device).into_scalar::<f32>() as f64;
+        batches += 1;
+        let n = batch.n;
+        let denorm = |k: usize, c: usize| vectors[k * 3 + c] as f64 * scale.1[c] + scale.0[c];
+        for g in 0..batch.batch {
+            count += 1;
+            match task {
+                Task::Forward => {
+                    let mut worst = 0.0f64;
+                    for j in 0..n {
+                        if batch.mask[g * n + j] == 0.0 {
+                            continue;
+                        }
+                        let e: f64 = (0..3)
+                            .map(|c| {
+                                let d = denorm(g * n + j, c)
+                                    - targets.displacement[(g * n + j) * 3 + c] as f64;
+                                d * d
+                            })
+                            .sum();
+                        worst = worst.max(e.sqrt());
+                    }
+                    error_sum += worst;
+                }
+                Task::Policy => {
+                    let c = targets.contact[g];
+                    let e: f64 = (0..3)
+                        .map(|k| {
+                            let d = denorm(g * n + c, k) - targets.push[g * 3 + k] as f64;
+                            d * d
+                        })
+                        .sum();
+                    error_sum += e.sqrt();
+                    let row = &logits.as_ref().expect("policy logits")[g * n..(g + 1) * n];
+                    let best = (0..n)
+                        .filter(|&j| batch.mask[g * n + j] > 0.0)
+                        .max_by(|&a, &b| row[a].total_cmp(&row[b]))
+                        .unwrap_or(0);
+                    correct += usize::from(best == c);
+                }
+            }
+        }
+    }
+    let accuracy = (task == Task::Policy).then(|| correct as f64 / count.max(1) as f64);
+    (
+        loss_sum / batches.max(1) as f64,
+        error_sum / count.max(1) as f64,
+        accuracy,
+    )
+}
