@@ -8,74 +8,28 @@
 //!
 //! Prints numbers; asserts nothing.
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpStream;
-use std::process::{Command, Stdio};
+use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use serde_json::json;
 use treemanip::api::tree_json::TreeJson;
 use treemanip::tree::{ScaParams, generate};
 
+#[allow(dead_code)] // the bench uses part of the tests' helper
+#[path = "../tests/it/common/server.rs"]
+mod server;
+
 const CONNECTIONS: usize = 4;
 const SECONDS: f64 = 6.0;
 
-/// One keep-alive HTTP/1.1 POST; returns the status.
-fn post(stream: &mut BufReader<TcpStream>, path: &str, body: &[u8]) -> u16 {
-    // One write per request: separate small writes meet Nagle's algorithm
-    // and delayed ACKs, which add ~40 ms to every call.
-    let mut request = format!(
-        "POST {path} HTTP/1.1\r\nHost: bench\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n",
-        body.len()
-    )
-    .into_bytes();
-    request.extend_from_slice(body);
-    stream.get_mut().write_all(&request).unwrap();
-    let mut status_line = String::new();
-    stream.read_line(&mut status_line).unwrap();
-    let status = status_line
-        .split_whitespace()
-        .nth(1)
-        .unwrap()
-        .parse()
-        .unwrap();
-    let mut length = 0usize;
-    loop {
-        let mut line = String::new();
-        stream.read_line(&mut line).unwrap();
-        let line = line.trim_end();
-        if line.is_empty() {
-            break;
-        }
-        if let Some(v) = line.to_ascii_lowercase().strip_prefix("content-length:") {
-            length = v.trim().parse().unwrap();
-        }
-    }
-    let mut body = vec![0u8; length];
-    stream.read_exact(&mut body).unwrap();
-    status
-}
-
 fn main() {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_treemanip-server"))
-        .args(["--bind", "127.0.0.1:0", "--max-in-flight", "64"])
-        .args([
-            "--models-dir",
-            concat!(env!("CARGO_MANIFEST_DIR"), "/models"),
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("server starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let addr = line
-        .trim()
-        .strip_prefix("listening on http://")
-        .unwrap()
-        .to_owned();
+    let server = server::Server::start(&[
+        "--max-in-flight",
+        "64",
+        "--models-dir",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/models"),
+    ]);
+    let addr = server.addr.clone();
     let backend =
         std::env::var("ORT_DYLIB_PATH").map_or("tract".to_owned(), |_| "onnxruntime".to_owned());
     println!("POST /v1/forward, backend {backend}, {CONNECTIONS} connections, {SECONDS} s per row");
@@ -90,20 +44,29 @@ fn main() {
             .unwrap();
             let deadline = Instant::now() + Duration::from_secs_f64(SECONDS);
             let started = Instant::now();
-            let latencies: Vec<f64> = std::thread::scope(|scope| {
+            let results: Vec<(u16, f64)> = std::thread::scope(|scope| {
                 let handles: Vec<_> = (0..CONNECTIONS)
                     .map(|_| {
                         let (addr, body) = (&addr, &body);
                         scope.spawn(move || {
-                            let socket = TcpStream::connect(addr).unwrap();
-                            socket.set_nodelay(true).unwrap();
-                            let mut stream = BufReader::new(socket);
+                            // One keep-alive connection per client.
+                            let agent = server::client();
+                            let url = format!("http://{addr}/v1/forward");
                             let mut times = Vec::new();
                             while Instant::now() < deadline {
                                 let t = Instant::now();
-                                let status = post(&mut stream, "/v1/forward", body);
-                                assert_eq!(status, 200);
-                                times.push(t.elapsed().as_secs_f64() * 1e3);
+                                let status = match agent
+                                    .post(&url)
+                                    .header("content-type", "application/json")
+                                    .send(&body[..])
+                                {
+                                    Ok(mut r) => {
+                                        let _ = r.body_mut().read_to_vec();
+                                        r.status().as_u16()
+                                    }
+                                    Err(_) => 0, // connection error
+                                };
+                                times.push((status, t.elapsed().as_secs_f64() * 1e3));
                             }
                             times
                         })
@@ -115,11 +78,24 @@ fn main() {
                     .collect()
             });
             let elapsed = started.elapsed().as_secs_f64();
-            let mut sorted = latencies.clone();
+            let mut statuses = BTreeMap::new();
+            for (status, _) in &results {
+                *statuses.entry(*status).or_insert(0usize) += 1;
+            }
+            // Latency of the answered requests (200s).
+            let mut sorted: Vec<f64> = results
+                .iter()
+                .filter(|(s, _)| *s == 200)
+                .map(|(_, t)| *t)
+                .collect();
+            if sorted.is_empty() {
+                println!("  N={n:<3} actions={actions:<3} no request succeeded: {statuses:?}");
+                continue;
+            }
             sorted.sort_by(f64::total_cmp);
             let pct = |p: f64| sorted[((sorted.len() as f64 * p) as usize).min(sorted.len() - 1)];
             println!(
-                "  N={n:<3} actions={actions:<3} {:>8.1} req/s {:>9.1} actions/s  p50 {:>7.2} ms  p99 {:>7.2} ms",
+                "  N={n:<3} actions={actions:<3} {:>8.1} req/s {:>9.1} actions/s  p50 {:>7.2} ms  p99 {:>7.2} ms  statuses {statuses:?}",
                 sorted.len() as f64 / elapsed,
                 (sorted.len() * actions) as f64 / elapsed,
                 pct(0.5),
@@ -127,6 +103,5 @@ fn main() {
             );
         }
     }
-    let _ = child.kill();
-    let _ = child.wait();
+    drop(server);
 }

@@ -2,9 +2,7 @@
 
 use std::path::Path;
 
-mod common;
-
-use common::{temp_dir, treemanip};
+use crate::common::{temp_dir, treemanip};
 use serde_json::Value;
 use treemanip::tree::urdf;
 

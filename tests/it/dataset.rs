@@ -3,9 +3,7 @@
 
 use std::process::Command;
 
-mod common;
-
-use common::{temp_dir, treemanip};
+use crate::common::{temp_dir, treemanip};
 use serde_json::Value;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
 use treemanip::dataset::{Split, read_size_file, write_size_file};

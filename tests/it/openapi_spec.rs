@@ -64,6 +64,7 @@ fn every_served_route_is_described() {
         "invalid_tree",
         "invalid_argument",
         "push_infeasible",
+        "out_of_domain",
         "not_ready",
         "overloaded",
         "timeout",

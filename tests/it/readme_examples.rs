@@ -2,13 +2,11 @@
 //! `bash -euo pipefail` against a fresh server on the committed models
 //! (only the address is substituted), and so does its Python example.
 
-mod common;
-
 use std::process::Command;
 
-use common::server::Server;
+use crate::common::server::Server;
 
-const README: &str = include_str!("../README.md");
+const README: &str = include_str!("../../README.md");
 
 /// The fenced block of `lang` that follows `marker`.
 fn block(marker: &str, lang: &str) -> String {

@@ -98,7 +98,7 @@ fn capsules_enclose_the_reference_meshes() {
     // corners inside one capsule lies inside it (capsules are convex), so
     // this shows the capsules cover every mesh surface, not just vertices.
     let meshes: serde_json::Value =
-        serde_json::from_str(include_str!("data/ur5_mesh_triangles.json")).unwrap();
+        serde_json::from_str(include_str!("../data/ur5_mesh_triangles.json")).unwrap();
     let robot = Ur5::default();
     let mut checked = 0;
     for (link, shapes) in robot.link_shapes() {

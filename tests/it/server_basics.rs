@@ -1,18 +1,16 @@
 //! `treemanip-server` as a process: it binds, answers the process endpoints
 //! with the documented JSON shapes, and exits cleanly on SIGTERM.
 
-mod common;
-
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::Duration;
 
-use common::server::Server;
+use crate::common::server::Server;
 use serde_json::{Value, json};
 
 /// Without models: only the simulator answers.
 fn start() -> Server {
-    let empty = common::temp_dir("no-models");
+    let empty = crate::common::temp_dir("no-models");
     Server::start(&["--models-dir", empty.to_str().unwrap()])
 }
 
@@ -148,12 +146,13 @@ fn every_error_class_has_its_status_and_shape() {
         (415, Some("unsupported_media_type"))
     );
     // 413: a body over 1 MiB, a tree over 64 nodes.
-    let (status, body) = server.send(
+    let (status, _, body) = server.raw(
         "POST",
         "/v1/simulate",
         "application/json",
         &vec![b' '; 2 << 20],
     );
+    let body: serde_json::Value = serde_json::from_str(&body).unwrap();
     assert_eq!(
         (status, body["error"]["code"].as_str()),
         (413, Some("too_large")),
@@ -237,7 +236,7 @@ fn metrics_count_requests_and_the_spec_is_served() {
             .filter_map(|l| l.rsplit(' ').next()?.parse::<f64>().ok())
             .sum()
     };
-    let metrics = || server.raw("GET", "/metrics", "text/plain", b"").2;
+    let metrics = || server.request("GET", "/metrics", "text/plain", b"").2;
     let before = count(&metrics());
     for _ in 0..3 {
         assert_eq!(
@@ -251,7 +250,7 @@ fn metrics_count_requests_and_the_spec_is_served() {
     assert_eq!(count(&after) - before, 3.0, "{after}");
     assert!(after.contains("treemanip_http_request_duration_seconds_bucket"));
     assert!(after.contains("treemanip_compute_seconds"));
-    let (status, head, spec) = server.raw("GET", "/openapi.yaml", "text/plain", b"");
+    let (status, head, spec) = server.request("GET", "/openapi.yaml", "text/plain", b"");
     assert_eq!(status, 200);
     assert!(head.contains("application/yaml"));
     assert!(spec.starts_with("openapi: 3.1.0"));

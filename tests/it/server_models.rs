@@ -3,12 +3,10 @@
 //! errors have their status and shape, and every answer matches the schema
 //! openapi.yaml gives for it.
 
-mod common;
-
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-use common::server::Server;
+use crate::common::server::Server;
 use nalgebra::{Point3, Vector3};
 use serde_json::{Value, json};
 use treemanip::api::tree_json::TreeJson;
@@ -272,7 +270,7 @@ fn forward_answers_match_the_library_and_batch_many_actions() {
     );
 
     // Metrics saw the inference.
-    let metrics = server.raw("GET", "/metrics", "text/plain", b"").2;
+    let metrics = server.request("GET", "/metrics", "text/plain", b"").2;
     assert!(metrics.contains("treemanip_inference_seconds"), "{metrics}");
     assert!(metrics.contains("treemanip_actions_per_request"));
     rec.check();
@@ -391,7 +389,7 @@ fn policy_ranks_every_pushable_node_and_plan_runs_algorithm_1() {
     );
     assert_eq!(status, 422, "{answer}");
     assert_eq!(answer["error"]["details"]["field"], "robot.start");
-    let metrics = server.raw("GET", "/metrics", "text/plain", b"").2;
+    let metrics = server.request("GET", "/metrics", "text/plain", b"").2;
     assert!(metrics.contains("treemanip_plans_total"), "{metrics}");
     rec.check();
 }

@@ -2,8 +2,6 @@
 //! and the exported ONNX graphs compute; a short run learns; checkpoints
 //! save, load and resume exactly.
 
-mod common;
-
 use std::path::Path;
 
 use nalgebra::Vector3;
@@ -16,7 +14,8 @@ use treemanip::nn::gnn::{Connectivity, EdgeAttributes, GnnConfig, GnnOutput, Gnn
 use treemanip::nn::model::{Arch, ModelWeights};
 use treemanip::nn::pointnet::{PointNetConfig, PointNetWeights, position_stats};
 use treemanip::nn::train::{
-    StopReason, TrainConfig, burn_forward, current_weights, read_best, read_state, train,
+    ResumeOptions, StopReason, TrainConfig, burn_forward, current_weights, read_best, read_state,
+    resume, train,
 };
 use treemanip::tree::{ScaParams, generate};
 
@@ -202,7 +201,7 @@ fn tiny_config(task: Task, arch: Arch, data: &Path, epochs: usize) -> TrainConfi
 
 #[test]
 fn a_short_run_learns_and_the_best_weights_export() {
-    let tmp = common::temp_dir("train-learns");
+    let tmp = crate::common::temp_dir("train-learns");
     tiny_dataset(&tmp);
     for (task, arch, epochs) in [
         (Task::Forward, Arch::Gnn, 30),
@@ -214,7 +213,6 @@ fn a_short_run_learns_and_the_best_weights_export() {
         let (state, reason) = train(
             tiny_config(task, arch, &tmp, epochs),
             &out,
-            false,
             None,
             &mut |e| {
                 if let treemanip::nn::train::TrainEvent::Step { loss } = e {
@@ -245,7 +243,7 @@ fn a_short_run_learns_and_the_best_weights_export() {
         let padded = batch(&graphs(task)).unwrap();
         let reference = best.forward(&padded);
         assert!(reference.vectors.iter().all(|v| v.is_finite()));
-        // JSON round trip of the stored weights is exact.
+        // JSON round trip of the weights is exact.
         let text = serde_json::to_string(&best).unwrap();
         let back: ModelWeights = serde_json::from_str(&text).unwrap();
         assert_eq!(back.forward(&padded), reference);
@@ -254,33 +252,40 @@ fn a_short_run_learns_and_the_best_weights_export() {
 
 #[test]
 fn resuming_a_checkpoint_continues_exactly() {
-    let tmp = common::temp_dir("train-resume");
+    let tmp = crate::common::temp_dir("train-resume");
     tiny_dataset(&tmp);
     let straight = tmp.join("straight");
     let config = |epochs| TrainConfig {
         limit_per_size: Some(96),
         ..tiny_config(Task::Forward, Arch::Gnn, &tmp, epochs)
     };
-    train(config(3), &straight, false, None, &mut |_| {}).unwrap();
+    train(config(3), &straight, None, &mut |_| {}).unwrap();
 
-    // Stopped by a deadline in the middle of the first epoch, then resumed
-    // to epoch 2, then to epoch 3.
+    // Stopped by a deadline before the first step, resumed; stopped again
+    // somewhere in the middle (wherever 0.3 s ends), resumed to the end of
+    // the stored plan (cosine schedule and rotation angles included).
     let split = tmp.join("split");
     let (state, reason) = train(
         config(3),
         &split,
-        false,
         Some(std::time::Instant::now()),
         &mut |_| {},
     )
     .unwrap();
     assert_eq!(reason, StopReason::TimeBudget);
     assert_eq!((state.epoch, state.batch), (0, 0));
-    train(config(2), &split, true, None, &mut |_| {}).unwrap();
-    assert_eq!(read_state(&split).unwrap().epoch, 2);
-    let err = train(config(3), &split, false, None, &mut |_| {}).unwrap_err();
+    let err = train(config(3), &split, None, &mut |_| {}).unwrap_err();
     assert!(err.to_string().contains("--resume"), "{err}");
-    train(config(3), &split, true, None, &mut |_| {}).unwrap();
+    let again = || ResumeOptions {
+        command: "resume".into(),
+        ..ResumeOptions::default()
+    };
+    let soon = std::time::Instant::now() + std::time::Duration::from_millis(300);
+    resume(&split, again(), Some(soon), &mut |_| {}).unwrap();
+    let (state, reason) = resume(&split, again(), None, &mut |_| {}).unwrap();
+    assert_eq!(reason, StopReason::Finished);
+    assert_eq!(state.epoch, 3);
+    assert_eq!(state.commands.len(), 3);
 
     let (a, b) = (
         current_weights(&straight).unwrap(),

@@ -1,5 +1,6 @@
 //! A `treemanip-server` process on a free loopback port, spoken to over
-//! real HTTP/1.1.
+//! real HTTP/1.1 with ureq (a maintained client). The benches include this
+//! file too (`#[path]`), so there is one way to start and talk to a server.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
@@ -11,6 +12,17 @@ use serde_json::Value;
 pub struct Server {
     pub child: Child,
     pub addr: String,
+    agent: ureq::Agent,
+}
+
+/// A client that hands back every status (4xx and 5xx are answers here,
+/// not errors) and gives up after 30 s.
+pub fn client() -> ureq::Agent {
+    ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .timeout_global(Some(Duration::from_secs(30)))
+        .build()
+        .into()
 }
 
 impl Server {
@@ -32,10 +44,50 @@ impl Server {
             .strip_prefix("listening on http://")
             .unwrap_or_else(|| panic!("unexpected first line: {line:?}"))
             .to_owned();
-        Self { child, addr }
+        Self {
+            child,
+            addr,
+            agent: client(),
+        }
     }
 
-    /// Sends one HTTP/1.1 request; returns status, lower-cased headers and body.
+    /// Sends one request; returns status, the lower-cased header block and
+    /// the body.
+    pub fn request(
+        &self,
+        method: &str,
+        path: &str,
+        content_type: &str,
+        body: &[u8],
+    ) -> (u16, String, String) {
+        let request = ureq::http::Request::builder()
+            .method(method)
+            .uri(format!("http://{}{path}", self.addr))
+            .header("content-type", content_type)
+            .body(body.to_vec())
+            .unwrap();
+        let mut response = self
+            .agent
+            .run(request)
+            .unwrap_or_else(|e| panic!("{method} {path}: {e}"));
+        let head: String = response
+            .headers()
+            .iter()
+            .map(|(k, v)| format!("{}: {}\r\n", k, v.to_str().unwrap_or("")))
+            .collect();
+        let text = response
+            .body_mut()
+            .with_config()
+            .limit(64 << 20)
+            .read_to_string()
+            .unwrap();
+        (response.status().as_u16(), head.to_ascii_lowercase(), text)
+    }
+
+    /// Writes one HTTP/1.1 request on a bare socket; returns status,
+    /// lower-cased headers and body. For what a client library would not
+    /// send or would give up on: a body the server refuses before reading
+    /// it all.
     pub fn raw(
         &self,
         method: &str,
@@ -79,7 +131,7 @@ impl Server {
     }
 
     pub fn send(&self, method: &str, path: &str, content_type: &str, body: &[u8]) -> (u16, Value) {
-        let (status, head, body) = self.raw(method, path, content_type, body);
+        let (status, head, body) = self.request(method, path, content_type, body);
         assert!(head.contains("content-type: application/json"), "{head}");
         (
             status,

@@ -1,0 +1,28 @@
+//! The integration tests: one test binary (one link of burn, tract and
+//! ort instead of one per file), a module per area. Shared helpers, the
+//! server launcher and HTTP client among them, live in [`common`].
+
+mod cli_trees;
+mod common;
+mod dataset;
+mod fuzz_corpus;
+mod graph_encoding;
+mod onnx_parity;
+mod openapi_spec;
+mod readme_examples;
+mod robot_collision;
+mod robot_model;
+mod robot_plan;
+mod robot_rrt;
+mod sca;
+mod schemathesis;
+mod server_adversarial;
+mod server_basics;
+mod server_faults;
+mod server_models;
+mod sim_convergence;
+mod sim_physics;
+mod training;
+mod tree_model;
+mod urdf_python;
+mod urdf_roundtrip;
