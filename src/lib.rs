@@ -8,6 +8,7 @@
 pub mod api;
 pub mod dataset;
 pub mod eval;
+pub mod fuzz;
 pub mod graph;
 pub mod infer;
 pub mod nn;

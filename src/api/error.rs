@@ -8,7 +8,7 @@
 //! | 405 | `method_not_allowed` | wrong method for the route |
 //! | 413 | `too_large` | body or tree over the limits |
 //! | 415 | `unsupported_media_type` | not `application/json` |
-//! | 422 | `invalid_tree`, `invalid_argument`, `push_infeasible` | the request is well formed but not usable |
+//! | 422 | `invalid_tree`, `invalid_argument`, `push_infeasible`, `out_of_domain` | the request is well formed but not usable (`out_of_domain`: outside what the model was trained on) |
 //! | 503 | `not_ready`, `overloaded` | models not loaded / too much work queued |
 //! | 504 | `timeout` | the request's time budget ran out |
 //! | 500 | `internal` | a bug: never caused by what a client sent |
@@ -59,6 +59,10 @@ impl ApiError {
             "invalid_argument",
             message,
         )
+    }
+
+    pub fn out_of_domain(message: impl Into<String>) -> Self {
+        Self::new(StatusCode::UNPROCESSABLE_ENTITY, "out_of_domain", message)
     }
 
     pub fn too_large(message: impl Into<String>) -> Self {

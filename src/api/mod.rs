@@ -7,11 +7,13 @@
 //! `GET /v1/models`, `POST /v1/forward`, `POST /v1/policy`, `POST /v1/plan`,
 //! `POST /v1/simulate`. Described in `openapi.yaml`.
 
+pub mod domain;
 pub mod error;
 pub mod json;
 pub mod metrics;
 pub mod plan;
 pub mod predict;
+pub mod shutdown;
 pub mod simulate;
 pub mod tree_json;
 
@@ -64,6 +66,8 @@ pub struct Limits {
     pub max_actions: usize,
     /// Largest planning budget a `/v1/plan` call may ask for.
     pub max_plan_budget: Duration,
+    /// Serve `POST /debug/panic` and `/debug/panic-worker` (tests only).
+    pub fault_injection: bool,
 }
 
 impl Default for Limits {
@@ -76,6 +80,7 @@ impl Default for Limits {
             request_timeout: Duration::from_secs(10),
             max_actions: 256,
             max_plan_budget: Duration::from_secs(5),
+            fault_injection: false,
         }
     }
 }
@@ -88,6 +93,8 @@ pub struct AppState {
     pub models: Option<Arc<ModelSet>>,
     admission: Arc<Semaphore>,
     metrics: metrics_exporter_prometheus::PrometheusHandle,
+    /// Graceful shutdown's state ([`shutdown`]).
+    pub drain: Arc<shutdown::Drain>,
 }
 
 impl AppState {
@@ -97,6 +104,7 @@ impl AppState {
             limits,
             models: None,
             metrics: metrics::recorder(),
+            drain: Arc::default(),
         }
     }
 
@@ -163,7 +171,22 @@ impl AppState {
 
 pub fn router(state: AppState) -> Router {
     let body_limit = state.limits.max_body_bytes;
-    Router::new()
+    let mut routes = Router::new();
+    if state.limits.fault_injection {
+        // For tests of what a bug does to the server: a handler that
+        // panics, and one whose blocking job panics.
+        routes = routes.route("/debug/panic", post(injected_panic)).route(
+            "/debug/panic-worker",
+            post(|State(state): State<AppState>| async move {
+                state
+                    .run_blocking("/debug/panic-worker", || -> Result<(), ApiError> {
+                        panic!("injected fault in a worker")
+                    })
+                    .await
+            }),
+        );
+    }
+    routes
         .route("/healthz", get(healthz))
         .route("/readyz", get(readyz))
         .route("/metrics", get(render_metrics))
@@ -175,9 +198,34 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/simulate", post(simulate::simulate))
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            shutdown::guard,
+        ))
         .layer(axum::middleware::from_fn(metrics::track))
+        // A bug in one handler is that request's 500, in the error shape;
+        // the server keeps serving.
+        .layer(tower_http::catch_panic::CatchPanicLayer::custom(
+            panic_response,
+        ))
         .layer(DefaultBodyLimit::max(body_limit))
         .with_state(state)
+}
+
+async fn injected_panic() -> ApiError {
+    panic!("injected fault")
+}
+
+fn panic_response(panic: Box<dyn std::any::Any + Send + 'static>) -> axum::response::Response {
+    let what = panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown".to_owned());
+    tracing::error!(panic = %what, "a request handler panicked");
+    ::metrics::counter!("treemanip_panics_total").increment(1);
+    ApiError::internal("the server hit a bug while answering this request (it keeps serving)")
+        .into_response()
 }
 
 /// The process is up and answering.
@@ -197,16 +245,29 @@ async fn readyz(State(state): State<AppState>) -> Result<axum::Json<serde_json::
         .copied()
         .filter(|r| !loaded.iter().any(|l| l == r))
         .collect();
+    let broken: serde_json::Map<String, serde_json::Value> = state
+        .models
+        .as_ref()
+        .map(|m| {
+            m.broken
+                .iter()
+                .map(|(name, why)| (name.clone(), json!(why)))
+                .collect()
+        })
+        .unwrap_or_default();
     if !missing.is_empty() {
         return Err(ApiError::not_ready(format!(
             "models not loaded: {} (POST /v1/simulate works without them)",
             missing.join(", ")
         ))
-        .with_details(json!({ "missing": missing, "loaded": loaded })));
+        .with_details(json!({ "missing": missing, "loaded": loaded, "broken": broken })));
     }
-    Ok(axum::Json(
-        json!({ "status": "ready", "models": loaded, "backend": state.backend_name() }),
-    ))
+    Ok(axum::Json(json!({
+        "status": "ready",
+        "models": loaded,
+        "broken": broken,
+        "backend": state.backend_name(),
+    })))
 }
 
 /// Every loaded model with its metadata.

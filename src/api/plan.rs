@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::AppState;
+use super::domain::{self, Warning};
 use super::error::ApiError;
 use super::json::ApiJson;
 use super::predict::{ModelInfo, targets, vector3};
@@ -46,8 +47,11 @@ pub struct PlanRequest {
     #[serde(default)]
     pub budget_ms: Option<f64>,
     /// RRT* seed (plans are reproducible for a given seed).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "super::json::integer::opt_u64")]
     pub seed: Option<u64>,
+    /// See [`super::predict::ForwardRequest::allow_out_of_domain`].
+    #[serde(default)]
+    pub allow_out_of_domain: bool,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -63,6 +67,8 @@ pub struct PlanResponse {
     pub attempts: Vec<Attempt>,
     pub total_ms: f64,
     pub model: ModelInfo,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<Warning>,
 }
 
 fn joints(values: &[f64]) -> Result<[f64; 6], ApiError> {
@@ -92,6 +98,7 @@ pub async fn plan(
     let model = state.model_for(Task::Policy)?;
     let tree = request.tree.to_tree(state.limits.max_nodes)?;
     let targets = targets(&request.target_positions, &tree)?;
+    let warnings = domain::check(&model, &tree, &[], request.allow_out_of_domain)?;
     let max_ms = state.limits.max_plan_budget.as_secs_f64() * 1e3;
     let budget_ms = request.budget_ms.unwrap_or(max_ms.min(2000.0));
     if !(budget_ms.is_finite() && budget_ms > 0.0 && budget_ms <= max_ms) {
@@ -168,6 +175,7 @@ pub async fn plan(
                 attempts: report.attempts,
                 total_ms: report.total_ms,
                 model: info,
+                warnings,
             })
         })
         .await?;

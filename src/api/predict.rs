@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::AppState;
+use super::domain::{self, Warning};
 use super::error::ApiError;
 use super::json::ApiJson;
 use super::tree_json::TreeJson;
@@ -38,17 +39,21 @@ impl ModelInfo {
 pub struct ForwardRequest {
     pub tree: TreeJson,
     /// One action: the contacted node...
-    #[serde(default)]
+    #[serde(default, deserialize_with = "super::json::integer::opt_usize")]
     pub contact_node: Option<usize>,
     /// ...and the gripper displacement T (m).
     #[serde(default)]
     pub push: Option<Vec<f64>>,
     /// Many actions on the same tree: contact nodes...
-    #[serde(default)]
+    #[serde(default, deserialize_with = "super::json::integer::opt_vec_usize")]
     pub contact_nodes: Option<Vec<usize>>,
     /// ...and their pushes, one per contact node.
     #[serde(default)]
     pub pushes: Option<Vec<Vec<f64>>>,
+    /// Answer for trees and pushes outside the model's domain too (with
+    /// warnings) instead of refusing them with 422 `out_of_domain`.
+    #[serde(default)]
+    pub allow_out_of_domain: bool,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -58,6 +63,9 @@ pub struct ForwardResponse {
     /// Per action, per node: predicted p + Δp (m).
     pub positions: Vec<Vec<[f64; 3]>>,
     pub model: ModelInfo,
+    /// Why the answer may be less trustworthy than usual (empty: omitted).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<Warning>,
 }
 
 /// A 3-vector field, finite.
@@ -200,6 +208,8 @@ pub async fn forward(
     let model = state.model_for(Task::Forward)?;
     let tree = request.tree.to_tree(state.limits.max_nodes)?;
     let actions = actions(&request, &tree, state.limits.max_actions)?;
+    let lengths: Vec<(usize, f64)> = actions.iter().map(|(j, t)| (*j, t.norm())).collect();
+    let warnings = domain::check(&model, &tree, &lengths, request.allow_out_of_domain)?;
     ::metrics::histogram!("treemanip_actions_per_request", "route" => "/v1/forward")
         .record(actions.len() as f64);
     let info = ModelInfo::of(&model, &state);
@@ -226,6 +236,7 @@ pub async fn forward(
                     .map(|d| d.iter().map(|v| xyz(*v)).collect())
                     .collect(),
                 model: info,
+                warnings,
             })
         })
         .await?;
@@ -238,6 +249,9 @@ pub struct PolicyRequest {
     pub tree: TreeJson,
     /// Where each node should end up (m).
     pub target_positions: Vec<Vec<f64>>,
+    /// See [`ForwardRequest::allow_out_of_domain`].
+    #[serde(default)]
+    pub allow_out_of_domain: bool,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -245,6 +259,8 @@ pub struct PolicyResponse {
     /// Every non-root node, by affordance, descending.
     pub candidates: Vec<Candidate>,
     pub model: ModelInfo,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<Warning>,
 }
 
 pub async fn policy(
@@ -254,6 +270,7 @@ pub async fn policy(
     let model = state.model_for(Task::Policy)?;
     let tree = request.tree.to_tree(state.limits.max_nodes)?;
     let targets = targets(&request.target_positions, &tree)?;
+    let warnings = domain::check(&model, &tree, &[], request.allow_out_of_domain)?;
     let info = ModelInfo::of(&model, &state);
     let response = state
         .run_blocking("/v1/policy", move || {
@@ -264,6 +281,7 @@ pub async fn policy(
             Ok(PolicyResponse {
                 candidates,
                 model: info,
+                warnings,
             })
         })
         .await?;

@@ -17,6 +17,7 @@ use crate::sim::{
 #[serde(deny_unknown_fields)]
 pub struct SimulateRequest {
     pub tree: TreeJson,
+    #[serde(deserialize_with = "super::json::integer::usize")]
     pub contact_node: usize,
     /// Gripper displacement T (m).
     pub push: Vec<f64>,

@@ -22,6 +22,7 @@ use nalgebra::Point3;
 #[serde(deny_unknown_fields)]
 pub struct TreeJson {
     pub positions: Vec<Vec<f64>>,
+    #[serde(deserialize_with = "super::json::integer::vec_opt_usize")]
     pub parents: Vec<Option<usize>>,
     pub radius: Vec<Option<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]

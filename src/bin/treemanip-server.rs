@@ -42,6 +42,16 @@ struct Args {
     /// Largest planning budget a /v1/plan call may ask for (milliseconds).
     #[arg(long, env = "TREEMANIP_MAX_PLAN_BUDGET_MS", default_value_t = 5000)]
     max_plan_budget_ms: u64,
+    /// Serve the models that load and report the others as not ready,
+    /// instead of refusing to start when a model file is missing, truncated
+    /// or of another feature layout.
+    #[arg(long, env = "TREEMANIP_SKIP_BROKEN_MODELS")]
+    skip_broken_models: bool,
+    /// Serve `POST /debug/panic` and `/debug/panic-worker`, which panic on
+    /// purpose: for testing that a bug in one request costs only that
+    /// request. Never in production.
+    #[arg(long, hide = true)]
+    fault_injection: bool,
     /// Log format.
     #[arg(long, env = "TREEMANIP_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
     log_format: LogFormat,
@@ -79,8 +89,21 @@ async fn main() -> anyhow::Result<()> {
         anyhow::bail!("--max-actions must be at least 1");
     }
     let sessions = std::thread::available_parallelism().map_or(2, |n| n.get());
-    let models = ModelSet::load_dir(&args.models_dir, args.ort_dylib.as_deref(), sessions)
-        .map_err(|e| anyhow::anyhow!("loading models from {}: {e}", args.models_dir.display()))?;
+    let models = ModelSet::load_dir(
+        &args.models_dir,
+        args.ort_dylib.as_deref(),
+        sessions,
+        args.skip_broken_models,
+    )
+    .map_err(|e| {
+        anyhow::anyhow!(
+            "loading models from {}: {e} (--skip-broken-models serves the others)",
+            args.models_dir.display()
+        )
+    })?;
+    for (name, error) in &models.broken {
+        tracing::error!(model = %name, %error, "model not loaded; serving without it");
+    }
     tracing::info!(
         backend = ?models.backend,
         models = ?models.models.iter().map(|m| m.name.as_str()).collect::<Vec<_>>(),
@@ -103,34 +126,18 @@ async fn main() -> anyhow::Result<()> {
         request_timeout: std::time::Duration::from_secs_f64(args.request_timeout),
         max_actions: args.max_actions,
         max_plan_budget: std::time::Duration::from_millis(args.max_plan_budget_ms),
+        fault_injection: args.fault_injection,
     };
+    let grace = limits.request_timeout + std::time::Duration::from_secs(5);
     let state = AppState::new(limits).with_models(std::sync::Arc::new(models));
+    let drain = state.drain.clone();
     let app = api::router(state).layer(tower_http::trace::TraceLayer::new_for_http());
     axum::serve(listener, app)
-        .with_graceful_shutdown(shutdown_signal())
+        .with_graceful_shutdown(async move {
+            api::shutdown::signal().await;
+            drain.drain(grace).await;
+        })
         .await?;
     tracing::info!("shut down cleanly");
     Ok(())
-}
-
-/// Resolves on SIGINT or SIGTERM; in-flight requests then finish.
-async fn shutdown_signal() {
-    let interrupt = async {
-        tokio::signal::ctrl_c().await.ok();
-    };
-    #[cfg(unix)]
-    let terminate = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(_) => std::future::pending::<()>().await,
-        }
-    };
-    #[cfg(not(unix))]
-    let terminate = std::future::pending::<()>();
-    tokio::select! {
-        _ = interrupt => {},
-        _ = terminate => {},
-    }
 }

@@ -155,7 +155,17 @@ pub fn read_size_file(path: &Path, split: Split) -> Result<SizeData, NpzError> {
         path: where_.clone(),
         message: e.to_string(),
     })?;
-    let mut npz = NpzReader::new(BufReader::new(file)).map_err(|e| NpzError::Io {
+    read_size(BufReader::new(file), &where_, split)
+}
+
+/// [`read_size_file`] from any seekable reader; `where_` names it in errors.
+pub fn read_size<R: std::io::Read + std::io::Seek>(
+    reader: R,
+    where_: &str,
+    split: Split,
+) -> Result<SizeData, NpzError> {
+    let where_ = where_.to_owned();
+    let mut npz = NpzReader::new(reader).map_err(|e| NpzError::Io {
         path: where_.clone(),
         message: format!("not an npz archive: {e}"),
     })?;

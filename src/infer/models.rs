@@ -11,6 +11,7 @@ use serde::Serialize;
 
 use super::{Backend, InferError, OnnxModel, init_backend, read_metadata};
 use crate::graph::{FEATURE_LAYOUT_VERSION, Task, batch, encode_forward, encode_policy};
+use crate::nn::domain::Domain;
 use crate::nn::gnn::GnnOutput;
 use crate::tree::Tree;
 
@@ -24,6 +25,9 @@ pub struct ServedModel {
     pub task: Task,
     pub file: PathBuf,
     pub metadata: Vec<(String, String)>,
+    /// Trees and pushes the model answers for (metadata `domain`); `None`
+    /// for models exported before domains were recorded.
+    pub domain: Option<Domain>,
     sessions: Vec<Mutex<OnnxModel>>,
 }
 
@@ -47,7 +51,21 @@ impl ServedModel {
             .map(|_| OnnxModel::with_threads(&bytes, metadata.clone(), Some(1)).map(Mutex::new))
             .collect::<Result<Vec<_>, _>>()?;
         let task = sessions[0].lock().expect("fresh lock").task();
+        let domain = match metadata.iter().find(|(k, _)| k == "domain") {
+            None => None,
+            Some((_, text)) => {
+                let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+                    InferError::Load(format!("{}: metadata `domain`: {e}", path.display()))
+                })?;
+                Some(
+                    serde_json::from_value(value["domain"].clone()).map_err(|e| {
+                        InferError::Load(format!("{}: metadata `domain`: {e}", path.display()))
+                    })?,
+                )
+            }
+        };
         Ok(Self {
+            domain,
             name: path
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
@@ -85,14 +103,20 @@ pub struct ModelSet {
     pub backend: Backend,
     pub dir: PathBuf,
     pub models: Vec<ServedModel>,
+    /// Files that failed to load (name, why), when broken files are
+    /// skipped rather than fatal; they show as not ready.
+    pub broken: Vec<(String, String)>,
 }
 
 impl ModelSet {
-    /// Loads every `*.onnx` in `dir` (sorted by name).
+    /// Loads every `*.onnx` in `dir` (sorted by name). A file that cannot be
+    /// loaded (missing, truncated, another feature layout) is an error that
+    /// names it, or, with `skip_broken`, is listed in [`ModelSet::broken`].
     pub fn load_dir(
         dir: &Path,
         library: Option<&Path>,
         sessions: usize,
+        skip_broken: bool,
     ) -> Result<Self, InferError> {
         let backend = init_backend(library)?;
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
@@ -101,14 +125,26 @@ impl ModelSet {
             .filter(|p| p.extension().is_some_and(|x| x == "onnx"))
             .collect();
         files.sort();
-        let models = files
-            .iter()
-            .map(|p| ServedModel::load(p, sessions))
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut models = Vec::new();
+        let mut broken = Vec::new();
+        for path in &files {
+            match ServedModel::load(path, sessions) {
+                Ok(model) => models.push(model),
+                Err(e) if skip_broken => {
+                    let name = path
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    broken.push((name, e.to_string()));
+                }
+                Err(e) => return Err(e),
+            }
+        }
         Ok(Self {
             backend,
             dir: dir.to_path_buf(),
             models,
+            broken,
         })
     }
 

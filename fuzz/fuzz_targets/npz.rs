@@ -1,0 +1,4 @@
+//! See `treemanip::fuzz::npz`.
+#![no_main]
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| treemanip::fuzz::npz(data));
