@@ -132,6 +132,10 @@ pub mod integer {
             .map(|v| v.into_iter().map(|i| i.map(index)).collect())
     }
 
+    pub fn vec_usize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<usize>, D::Error> {
+        Vec::<Integral>::deserialize(d).map(|v| v.into_iter().map(index).collect())
+    }
+
     pub fn opt_vec_usize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec<usize>>, D::Error> {
         Option::<Vec<Integral>>::deserialize(d)
             .map(|v| v.map(|v| v.into_iter().map(index).collect()))

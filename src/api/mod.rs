@@ -16,6 +16,7 @@ pub mod predict;
 pub mod shutdown;
 pub mod simulate;
 pub mod tree_json;
+pub mod v2;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -123,10 +124,14 @@ impl AppState {
 
     /// The model serving `task`, or 503 naming what is missing.
     pub fn model_for(&self, task: Task) -> Result<ModelRef, ApiError> {
+        self.model_by_name(&format!("{}_gnn", task.name()))
+    }
+
+    /// A loaded model by name, or 503 naming what is missing.
+    pub fn model_by_name(&self, name: &str) -> Result<ModelRef, ApiError> {
         let set = self.models.clone().ok_or_else(|| {
             ApiError::not_ready("no models are loaded (start the server with --models-dir)")
         })?;
-        let name = format!("{}_gnn", task.name());
         let index = set
             .models
             .iter()
@@ -196,6 +201,12 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/policy", post(predict::policy))
         .route("/v1/plan", post(plan::plan))
         .route("/v1/simulate", post(simulate::simulate))
+        .route("/v2", get(v2::server_metadata))
+        .route("/v2/health/live", get(v2::live))
+        .route("/v2/health/ready", get(v2::ready))
+        .route("/v2/models/{name}", get(v2::model_metadata))
+        .route("/v2/models/{name}/ready", get(v2::model_ready))
+        .route("/v2/models/{name}/infer", post(v2::infer))
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(axum::middleware::from_fn_with_state(

@@ -13,6 +13,7 @@ use ort::session::Session;
 use ort::value::TensorRef;
 use serde::Serialize;
 
+pub mod contract;
 pub mod models;
 
 use crate::graph::{Batch, EDGE_DIM};

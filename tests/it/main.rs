@@ -7,6 +7,7 @@ mod common;
 mod dataset;
 mod fuzz_corpus;
 mod graph_encoding;
+mod oip_v2;
 mod onnx_parity;
 mod openapi_spec;
 mod readme_examples;

@@ -48,6 +48,16 @@ fn every_served_route_is_described() {
         "/metrics:",
         "/openapi.yaml:",
         "/v1/simulate:",
+        "/v1/forward:",
+        "/v1/policy:",
+        "/v1/plan:",
+        "/v1/models:",
+        "/v2:",
+        "/v2/health/live:",
+        "/v2/health/ready:",
+        "/v2/models/{name}:",
+        "/v2/models/{name}/ready:",
+        "/v2/models/{name}/infer:",
     ] {
         assert!(
             spec.contains(&format!("  {route}")),
