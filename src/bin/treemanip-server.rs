@@ -63,9 +63,24 @@ enum LogFormat {
     Json,
 }
 
-#[tokio::main]
-async fn main() -> anyhow::Result<()> {
+fn main() -> anyhow::Result<()> {
     let args = Args::parse();
+    // The blocking pool runs the CPU work, at most --max-in-flight jobs at
+    // once (the admission limit), so it needs no more threads than that; and
+    // its threads are kept rather than re-created after 10 s idle, which
+    // under a long load left each new thread with its own malloc arena and
+    // the resident memory creeping up.
+    let defaults = Limits::default();
+    let blocking = args.max_in_flight.unwrap_or(defaults.max_in_flight).max(1);
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .max_blocking_threads(blocking)
+        .thread_keep_alive(std::time::Duration::from_secs(24 * 3600))
+        .build()?
+        .block_on(serve(args))
+}
+
+async fn serve(args: Args) -> anyhow::Result<()> {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
     let logs = tracing_subscriber::fmt()
