@@ -58,6 +58,13 @@ pub fn request(data: &[u8]) {
     );
 }
 
+/// Loads the models and builds the router once, before fuzzing starts
+/// (loading takes seconds under the sanitizers, which is not a request's
+/// time).
+pub fn init_request_harness() {
+    harness();
+}
+
 fn harness() -> &'static (tokio::runtime::Runtime, axum::Router) {
     static HARNESS: OnceLock<(tokio::runtime::Runtime, axum::Router)> = OnceLock::new();
     HARNESS.get_or_init(|| {

@@ -1,4 +1,7 @@
 //! See `treemanip::fuzz::request`.
 #![no_main]
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| treemanip::fuzz::request(data));
+libfuzzer_sys::fuzz_target!(
+    init: treemanip::fuzz::init_request_harness(),
+    |data: &[u8]| treemanip::fuzz::request(data)
+);

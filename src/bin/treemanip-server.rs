@@ -63,13 +63,29 @@ enum LogFormat {
     Json,
 }
 
+/// Large buffers (a 64-action batch at N = 30 holds tens of MB of edge
+/// embeddings) always get their own mapping, returned to the system when
+/// freed. glibc otherwise raises its mmap threshold after the first such
+/// free and serves later ones from the heap, where they fragment: a 10-minute
+/// soak grew the resident set by 15–20 % (and 488 → 587 MiB in 6 min); with
+/// a fixed 1 MiB threshold it stays flat (179 → 134 MiB).
+fn fix_malloc_thresholds() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets allocator parameters; it is called before
+    // any other thread exists.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 20);
+    }
+}
+
 fn main() -> anyhow::Result<()> {
+    fix_malloc_thresholds();
     let args = Args::parse();
     // The blocking pool runs the CPU work, at most --max-in-flight jobs at
-    // once (the admission limit), so it needs no more threads than that; and
-    // its threads are kept rather than re-created after 10 s idle, which
-    // under a long load left each new thread with its own malloc arena and
-    // the resident memory creeping up.
+    // once (the admission limit), so it needs no more threads than that
+    // (tokio's default allows 512); they are kept, not re-spawned after
+    // 10 s idle.
     let defaults = Limits::default();
     let blocking = args.max_in_flight.unwrap_or(defaults.max_in_flight).max(1);
     tokio::runtime::Builder::new_multi_thread()
