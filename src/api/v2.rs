@@ -12,10 +12,10 @@ use axum::http::HeaderMap;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
-use super::AppState;
 use super::error::ApiError;
+use super::{AppState, ModelRef};
 use crate::infer::contract::{self, DATATYPE, TensorSpec};
-use crate::infer::models::{MAX_BATCH, ServedModel};
+use crate::infer::models::MAX_BATCH;
 
 /// `GET /v2`.
 pub async fn server_metadata() -> Json<Value> {
@@ -39,20 +39,22 @@ pub async fn ready(State(state): State<AppState>) -> Result<Json<Value>, ApiErro
     Ok(Json(json!({ "ready": true })))
 }
 
-fn model<'a>(state: &'a AppState, name: &str) -> Result<&'a ServedModel, ApiError> {
+/// The served model `name`: 404 if there is no such model, 503 if its file
+/// failed to load.
+fn model(state: &AppState, name: &str) -> Result<ModelRef, ApiError> {
     let set = state
         .models
         .as_ref()
         .ok_or_else(|| ApiError::not_ready("no models are loaded"))?;
-    if let Some(m) = set.get(name) {
-        return Ok(m);
+    if set.get(name).is_none() {
+        if let Some((_, why)) = set.broken.iter().find(|(n, _)| n == name) {
+            return Err(ApiError::not_ready(format!(
+                "model {name} failed to load: {why}"
+            )));
+        }
+        return Err(ApiError::not_found(format!("no model named {name:?}")));
     }
-    if let Some((_, why)) = set.broken.iter().find(|(n, _)| n == name) {
-        return Err(ApiError::not_ready(format!(
-            "model {name} failed to load: {why}"
-        )));
-    }
-    Err(ApiError::not_found(format!("no model named {name:?}")))
+    state.model_by_name(name)
 }
 
 fn describe(specs: &[TensorSpec]) -> Vec<Value> {
@@ -219,12 +221,10 @@ pub async fn infer(
         return Err(bad(format!("`{unknown}` is not an output of {name}")));
     }
     let model_name = m.name.clone();
-    let models = state.model_by_name(&model_name)?;
     let (b, n) = (batch.batch, batch.n);
     let out = state
         .run_blocking("/v2/models/infer", move || {
-            models
-                .run(&batch)
+            m.run(&batch)
                 .map_err(|e| ApiError::internal(format!("inference failed: {e}")))
         })
         .await?;
