@@ -82,6 +82,7 @@ fn harness() -> &'static (tokio::runtime::Runtime, axum::Router) {
         .expect("the committed models load");
         let limits = Limits {
             max_plan_budget: Duration::from_millis(100),
+            max_plan_evaluations: 64,
             max_in_flight: 64,
             ..Limits::default()
         };

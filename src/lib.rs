@@ -12,6 +12,7 @@ pub mod fuzz;
 pub mod graph;
 pub mod infer;
 pub mod nn;
+pub mod planner;
 pub mod robot;
 pub mod seed;
 pub mod sim;

@@ -1,119 +1,192 @@
-//! Evaluating Algorithm 1 (the paper's Section IV-E, Fig. 10): on test
-//! episodes of every tree size, does the planner find an executable push,
-//! for which candidate rank, and how long does it take?
-//!
-//! Until a trained contact policy exists, candidates are ranked by an
-//! oracle-plus-Greedy stand-in: rank 1 is the episode's ground-truth
-//! contact and push, then the other nodes in decreasing distance to their
-//! targets, each pushed by p′_j − p_j. Every report says which ranking it
-//! used.
+//! Evaluating the planner (the paper's Section IV-E, Fig. 10, and this
+//! project's action selection): on test episodes of every tree size, the
+//! target is the episode's final shape; the planner gets only the tree and
+//! the target, ranking with the real contact policy. Its push is then
+//! executed in the simulator and the largest node distance left to the
+//! target is the score. An episode with no plan counts as No Action.
 
 use std::collections::BTreeMap;
+use std::time::Duration;
 
-use rayon::prelude::*;
+use nalgebra::{Point3, Vector3};
 use serde::Serialize;
 
 use crate::dataset::Episode;
-use crate::robot::collision::CollisionModel;
-use crate::robot::plan::{Outcome, PlanOptions, PushCandidate, plan_push};
-use crate::robot::rrt::Config;
+use crate::infer::models::{ServedModel, rank_candidates};
+use crate::planner::base::BaseRegion;
+use crate::planner::predict::max_node_error;
+use crate::planner::{Planner, Query, Stance, Strategy};
+use crate::robot::ur5;
+use crate::sim::{Push, SimConfig, simulate};
 use crate::tree::Tree;
 
-/// How candidates were ranked.
-pub const ORACLE_GREEDY: &str = "ground-truth contact first, then Greedy (farthest from target, push p'_j - p_j); no trained policy yet";
+/// One way of planning that is compared.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Setting {
+    pub strategy: Strategy,
+    /// With a base region (±0.5 m around the default base in x and y,
+    /// 0.1-1.0 m in z) instead of the fixed default base.
+    pub region: bool,
+}
 
-/// The stand-in candidate list for one episode.
-pub fn oracle_greedy_candidates(tree: &Tree, episode: &Episode) -> Vec<PushCandidate> {
-    let mut candidates = vec![PushCandidate {
-        node: episode.push.node,
-        push: episode.push.vector,
-    }];
-    let offset = |j: usize| episode.final_positions[j] - tree.position(j);
-    let mut others: Vec<usize> = (1..tree.len())
-        .filter(|&j| j != episode.push.node && offset(j).norm() > 1e-3)
-        .collect();
-    others.sort_by(|&a, &b| {
-        offset(b)
-            .norm()
-            .total_cmp(&offset(a).norm())
-            .then(a.cmp(&b))
-    });
-    candidates.extend(others.into_iter().map(|j| PushCandidate {
-        node: j,
-        push: offset(j),
-    }));
-    candidates
+impl Setting {
+    pub fn name(&self) -> String {
+        let strategy = serde_json::to_value(self.strategy)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_owned))
+            .unwrap_or_default();
+        format!(
+            "{strategy}/{}",
+            if self.region { "region" } else { "fixed" }
+        )
+    }
+
+    /// Every strategy, fixed base then base region.
+    pub fn all() -> Vec<Setting> {
+        [false, true]
+            .into_iter()
+            .flat_map(|region| {
+                [Strategy::Paper, Strategy::Model, Strategy::Physics]
+                    .into_iter()
+                    .map(move |strategy| Setting { strategy, region })
+            })
+            .collect()
+    }
+}
+
+/// The region of the evaluation: the default base ±0.5 m in x and y,
+/// 0.1-1.0 m high.
+pub fn evaluation_region() -> BaseRegion {
+    let base = ur5::default_base().translation.vector;
+    BaseRegion {
+        min: Vector3::new(base.x - 0.5, base.y - 0.5, 0.1),
+        max: Vector3::new(base.x + 0.5, base.y + 0.5, 1.0),
+        yaw: None,
+    }
 }
 
 #[derive(Debug, Clone, Serialize)]
-pub struct EpisodePlan {
+pub struct EpisodeResult {
     pub n: usize,
-    /// Rank of the planned candidate, if any.
+    pub planned: bool,
+    /// Policy rank of the planned node.
     pub rank: Option<usize>,
+    /// Max node error after executing the plan (No Action's without one), m.
+    pub executed_error: f64,
+    pub no_action_error: f64,
     pub ms: f64,
-    pub outcomes: Vec<Outcome>,
+    /// Outcome of every push the planner looked at.
+    pub outcomes: Vec<String>,
 }
 
-/// Plans every episode (in parallel); `trees` and `episodes` pair up.
-pub fn evaluate(
-    model: &CollisionModel,
-    episodes: &[(usize, &Tree, &Episode)],
-    start: &Config,
-    options: &PlanOptions,
-    progress: &(dyn Fn() + Sync),
-) -> Vec<EpisodePlan> {
-    episodes
-        .par_iter()
-        .map(|&(n, tree, episode)| {
-            let candidates = oracle_greedy_candidates(tree, episode);
-            let result = plan_push(model, tree, &candidates, start, options);
-            progress();
-            match result {
-                Ok(report) => EpisodePlan {
-                    n,
-                    rank: report.plan.as_ref().map(|p| p.rank),
-                    ms: report.total_ms,
-                    outcomes: report.attempts.iter().map(|a| a.outcome).collect(),
-                },
-                Err(_) => EpisodePlan {
-                    n,
-                    rank: None,
-                    ms: 0.0,
-                    outcomes: Vec::new(),
-                },
-            }
-        })
-        .collect()
+fn outcome_name<T: Serialize>(outcome: &T) -> String {
+    serde_json::to_value(outcome)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_owned))
+        .unwrap_or_default()
 }
 
+/// The error left after simulating `push`, or `fallback` when the simulator
+/// rejects it.
+fn executed(tree: &Tree, push: &Push, targets: &[Point3<f64>], fallback: f64) -> f64 {
+    simulate(tree, push, &SimConfig::default())
+        .map_or(fallback, |o| max_node_error(&o.final_positions, targets))
+}
+
+/// Plans one episode in one setting.
+pub fn plan_episode(
+    planner: &Planner,
+    policy: &ServedModel,
+    forward: &ServedModel,
+    n: usize,
+    tree: &Tree,
+    episode: &Episode,
+    setting: Setting,
+) -> EpisodeResult {
+    let targets = episode.final_positions.clone();
+    let mut query = Query::new(tree.clone(), targets.clone());
+    query.strategy = setting.strategy;
+    query.budget = Duration::from_secs(2);
+    if setting.region {
+        query.stance = Stance::Region(evaluation_region());
+    }
+    let no_action_error = max_node_error(tree.positions(), &targets);
+    let result = planner.plan(&query, policy, Some(forward));
+    let (plan, ms, outcomes) = match result {
+        Ok(p) => (
+            p.plan,
+            p.total_ms,
+            p.attempts
+                .iter()
+                .map(|a| outcome_name(&a.outcome))
+                .collect(),
+        ),
+        Err(e) => (None, 0.0, vec![format!("error: {e}")]),
+    };
+    let executed_error = plan.as_ref().map_or(no_action_error, |p| {
+        let push = Push {
+            node: p.node,
+            vector: p.push,
+        };
+        executed(tree, &push, &targets, no_action_error)
+    });
+    EpisodeResult {
+        n,
+        planned: plan.is_some(),
+        rank: plan.as_ref().map(|p| p.rank),
+        executed_error,
+        no_action_error,
+        ms,
+        outcomes,
+    }
+}
+
+/// The policy's top push executed with the arm ignored (the ceiling of the
+/// paper's method without reachability).
+pub fn policy_top_error(policy: &ServedModel, tree: &Tree, episode: &Episode) -> f64 {
+    let targets = &episode.final_positions;
+    let none = max_node_error(tree.positions(), targets);
+    match rank_candidates(policy, tree, targets, &Default::default()) {
+        Ok(ranked) if !ranked.is_empty() => {
+            let push = Push {
+                node: ranked[0].node,
+                vector: Vector3::from(ranked[0].push),
+            };
+            executed(tree, &push, targets, none)
+        }
+        _ => none,
+    }
+}
+
+/// One row of the table.
 #[derive(Debug, Clone, Serialize)]
-pub struct PlanSummary {
-    pub ranking: &'static str,
+pub struct SettingSummary {
+    pub method: String,
     pub episodes: usize,
-    pub planned: usize,
-    pub success_rate: f64,
-    /// Planned episodes by the rank of the candidate that was planned.
-    pub rank_histogram: BTreeMap<usize, usize>,
+    /// Share of episodes with a plan (NaN for the rows without an arm).
+    pub planned: f64,
+    /// Share whose executed error is below No Action's.
+    pub helpful: f64,
+    /// Mean executed max node error (m).
+    pub executed_error: f64,
     pub ms_p50: f64,
     pub ms_p95: f64,
-    pub ms_max: f64,
-    /// Attempt outcomes over all tried candidates.
+    pub rank_histogram: BTreeMap<usize, usize>,
     pub outcomes: BTreeMap<String, usize>,
-    /// (N, episodes, planned, success rate, median ms)
-    pub per_size: Vec<(usize, usize, usize, f64, f64)>,
 }
 
-fn percentile(sorted: &[f64], p: f64) -> f64 {
+/// The `p` quantile of sorted values (nearest rank).
+pub fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
     }
     sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
-pub fn summarise(results: &[EpisodePlan]) -> PlanSummary {
+pub fn summarise(method: &str, results: &[EpisodeResult]) -> SettingSummary {
+    let count = results.len().max(1) as f64;
     let mut times: Vec<f64> = results.iter().map(|r| r.ms).collect();
     times.sort_by(f64::total_cmp);
-    let planned = results.iter().filter(|r| r.rank.is_some()).count();
     let mut rank_histogram = BTreeMap::new();
     let mut outcomes = BTreeMap::new();
     for r in results {
@@ -121,47 +194,60 @@ pub fn summarise(results: &[EpisodePlan]) -> PlanSummary {
             *rank_histogram.entry(rank).or_default() += 1;
         }
         for o in &r.outcomes {
-            if *o != Outcome::Skipped {
-                *outcomes
-                    .entry(
-                        serde_json::to_value(o)
-                            .ok()
-                            .and_then(|v| v.as_str().map(str::to_owned))
-                            .unwrap_or_default(),
-                    )
-                    .or_default() += 1;
+            if o != "skipped" {
+                *outcomes.entry(o.clone()).or_default() += 1;
             }
         }
     }
-    let mut sizes: Vec<usize> = results.iter().map(|r| r.n).collect();
-    sizes.sort_unstable();
-    sizes.dedup();
-    let per_size = sizes
-        .iter()
-        .map(|&n| {
-            let of: Vec<&EpisodePlan> = results.iter().filter(|r| r.n == n).collect();
-            let ok = of.iter().filter(|r| r.rank.is_some()).count();
-            let mut t: Vec<f64> = of.iter().map(|r| r.ms).collect();
-            t.sort_by(f64::total_cmp);
-            (
-                n,
-                of.len(),
-                ok,
-                ok as f64 / of.len() as f64,
-                percentile(&t, 0.5),
-            )
-        })
-        .collect();
-    PlanSummary {
-        ranking: ORACLE_GREEDY,
+    SettingSummary {
+        method: method.to_owned(),
         episodes: results.len(),
-        planned,
-        success_rate: planned as f64 / results.len().max(1) as f64,
-        rank_histogram,
+        planned: results.iter().filter(|r| r.planned).count() as f64 / count,
+        helpful: results
+            .iter()
+            .filter(|r| r.executed_error < r.no_action_error - 1e-9)
+            .count() as f64
+            / count,
+        executed_error: results.iter().map(|r| r.executed_error).sum::<f64>() / count,
         ms_p50: percentile(&times, 0.5),
         ms_p95: percentile(&times, 0.95),
-        ms_max: times.last().copied().unwrap_or(f64::NAN),
+        rank_histogram,
         outcomes,
-        per_size,
     }
+}
+
+/// The table as Markdown (errors in cm, times in ms).
+pub fn to_markdown(rows: &[SettingSummary]) -> String {
+    let mut out = String::from(
+        "| method | episodes | planned % | helpful % | executed error (cm) | plan ms p50 | p95 | outcomes of the pushes looked at |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    let pct = |v: f64| {
+        if v.is_nan() {
+            "–".to_owned()
+        } else {
+            format!("{:.1}", 100.0 * v)
+        }
+    };
+    let ms = |v: f64| {
+        if v.is_nan() {
+            "–".to_owned()
+        } else {
+            format!("{v:.0}")
+        }
+    };
+    for r in rows {
+        let outcomes: Vec<String> = r.outcomes.iter().map(|(k, v)| format!("{k} {v}")).collect();
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {:.2} | {} | {} | {} |\n",
+            r.method,
+            r.episodes,
+            pct(r.planned),
+            pct(r.helpful),
+            100.0 * r.executed_error,
+            ms(r.ms_p50),
+            ms(r.ms_p95),
+            outcomes.join(", ")
+        ));
+    }
+    out
 }

@@ -42,9 +42,67 @@ pub const DISABLED_PAIRS: [(&str, &str); 7] = [
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Hit {
-    Ground { link: String },
-    Branch { link: String, node: usize },
-    SelfCollision { link: String, other: String },
+    Ground {
+        link: String,
+    },
+    Branch {
+        link: String,
+        node: usize,
+    },
+    SelfCollision {
+        link: String,
+        other: String,
+    },
+    /// One of the fixed obstacles (posts, wires, neighbouring stems), by its
+    /// index in the list given.
+    Obstacle {
+        link: String,
+        index: usize,
+    },
+}
+
+/// A fixed obstacle in the tree's frame (m, rad).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Obstacle {
+    /// A box with its centre, half extents along its axes, and a rotation
+    /// about the vertical axis.
+    Box {
+        centre: Point3<f64>,
+        half_extents: Vector3<f64>,
+        yaw: f64,
+    },
+    /// A capsule between two points.
+    Capsule {
+        a: Point3<f64>,
+        b: Point3<f64>,
+        radius: f64,
+    },
+}
+
+impl Obstacle {
+    fn world_shape(&self) -> (WorldShape, Aabb) {
+        match self {
+            Obstacle::Capsule { a, b, radius } => (
+                WorldShape::Capsule(Capsule::new(vec3(&a.coords), vec3(&b.coords), *radius)),
+                Aabb::of_capsule(&a.coords, &b.coords, *radius),
+            ),
+            Obstacle::Box {
+                centre,
+                half_extents,
+                yaw,
+            } => {
+                let iso = Isometry3::new(centre.coords, Vector3::z() * *yaw);
+                let extent = iso.rotation.to_rotation_matrix().matrix().abs() * half_extents;
+                (
+                    WorldShape::Box(Cuboid::new(vec3(half_extents)), pose(&iso)),
+                    Aabb {
+                        min: centre.coords - extent,
+                        max: centre.coords + extent,
+                    },
+                )
+            }
+        }
+    }
 }
 
 /// An axis-aligned box, for the prefilter.
@@ -97,11 +155,13 @@ impl WorldShape {
     }
 }
 
-/// The tree's branches as capsules.
+/// The tree's branches as capsules, and any fixed obstacles around it.
 #[derive(Debug, Clone)]
 pub struct TreeObstacles {
     /// (node the branch ends at, capsule, bounding box)
     branches: Vec<(usize, Capsule, Aabb)>,
+    /// Fixed obstacles, never touched by anything.
+    fixed: std::sync::Arc<[(WorldShape, Aabb)]>,
 }
 
 impl TreeObstacles {
@@ -124,13 +184,34 @@ impl TreeObstacles {
                 )
             })
             .collect();
-        Self { branches }
+        Self {
+            branches,
+            fixed: Vec::new().into(),
+        }
+    }
+
+    /// These obstacles with `obstacles` added as fixed ones.
+    pub fn with_obstacles(mut self, obstacles: &[Obstacle]) -> Self {
+        let mut fixed = self.fixed.to_vec();
+        fixed.extend(obstacles.iter().map(Obstacle::world_shape));
+        self.fixed = fixed.into();
+        self
+    }
+
+    /// The same fixed obstacles around the tree with its nodes at
+    /// `positions` (a snapshot during a push).
+    pub fn with_tree_at(&self, tree: &Tree, positions: &[Point3<f64>]) -> Self {
+        Self {
+            fixed: self.fixed.clone(),
+            ..Self::deformed(tree, positions)
+        }
     }
 
     /// Nothing to hit (an empty workcell but for the ground).
     pub fn empty() -> Self {
         Self {
             branches: Vec::new(),
+            fixed: Vec::new().into(),
         }
     }
 
@@ -148,6 +229,7 @@ impl TreeObstacles {
                     )
                 })
                 .collect(),
+            fixed: Vec::new().into(),
         }
     }
 }
@@ -337,6 +419,21 @@ impl CollisionModel {
                     return Some(Hit::Branch {
                         link: name(i),
                         node: *node,
+                    });
+                }
+            }
+        }
+        for (i, (shape, aabb)) in world.iter().enumerate() {
+            let (pose_a, shape_a) = shape.as_query();
+            for (index, (obstacle, obstacle_box)) in tree.fixed.iter().enumerate() {
+                if !aabb.overlaps(obstacle_box) {
+                    continue;
+                }
+                let (pose_b, shape_b) = obstacle.as_query();
+                if intersects(&pose_a, shape_a, &pose_b, shape_b) {
+                    return Some(Hit::Obstacle {
+                        link: name(i),
+                        index,
                     });
                 }
             }

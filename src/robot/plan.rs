@@ -52,13 +52,6 @@ pub const PUSH_SPEED: f64 = 0.05;
 /// Spacing of the deformed-tree snapshots used while pushing (m).
 pub const PUSH_SNAPSHOT: f64 = 0.01;
 
-/// One push the policy proposes.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct PushCandidate {
-    pub node: usize,
-    pub push: Vector3<f64>,
-}
-
 #[derive(Debug, Clone)]
 pub struct PlanOptions {
     pub rrt: RrtStarOptions,
@@ -101,6 +94,11 @@ pub enum Outcome {
     NoPath,
     /// The overall budget ran out before this candidate.
     Skipped,
+    /// The planner predicted this push leaves the tree no closer to its
+    /// target than doing nothing, so it was not executed.
+    NotHelpful,
+    /// The start configuration collides at this base (mobile bases only).
+    StartInCollision,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -139,13 +137,13 @@ pub enum PlanError {
 
 /// Tool poses for the pre-contact of a push (both slot orientations), or
 /// `None` when the push is unusable.
-pub fn pre_contact_poses(tree: &Tree, candidate: &PushCandidate) -> Option<[Isometry3<f64>; 2]> {
+pub fn pre_contact_poses(tree: &Tree, candidate: &Push) -> Option<[Isometry3<f64>; 2]> {
     let branch = tree.branch_direction(candidate.node)?;
-    let length = candidate.push.norm();
+    let length = candidate.vector.norm();
     if !(length.is_finite() && length > 1e-6) {
         return None;
     }
-    let z = candidate.push / length;
+    let z = candidate.vector / length;
     let along = branch - z * branch.dot(&z);
     if along.norm() < 1e-3 {
         return None; // pushing along the branch: no slot orientation
@@ -162,24 +160,46 @@ pub fn pre_contact_poses(tree: &Tree, candidate: &PushCandidate) -> Option<[Isom
     Some([pose, flipped])
 }
 
-/// Runs Algorithm 1 over `candidates` (best first).
+/// Runs Algorithm 1 over `candidates` (best first): the first push the arm
+/// can reach and carry out is planned.
 pub fn plan_push(
     model: &CollisionModel,
     tree: &Tree,
-    candidates: &[PushCandidate],
+    candidates: &[Push],
+    start: &Config,
+    options: &PlanOptions,
+) -> Result<PlanReport, PlanError> {
+    plan_push_among(
+        model,
+        tree,
+        &TreeObstacles::new(tree),
+        candidates,
+        start,
+        options,
+    )
+}
+
+/// [`plan_push`] with fixed obstacles besides the tree: `obstacles` is the
+/// tree at rest with them ([`TreeObstacles::with_obstacles`]).
+pub fn plan_push_among(
+    model: &CollisionModel,
+    tree: &Tree,
+    obstacles: &TreeObstacles,
+    candidates: &[Push],
     start: &Config,
     options: &PlanOptions,
 ) -> Result<PlanReport, PlanError> {
     let clock = Instant::now();
-    let obstacles = TreeObstacles::new(tree);
-    let free_scene = PlanningScene::new(model, &obstacles, Allowed::default());
+    let free_scene = PlanningScene::new(model, obstacles, Allowed::default());
     if !free_scene.config_valid(start) {
         return Err(PlanError::StartInCollision);
     }
     let mut attempts = Vec::new();
+    let mut plan = None;
     for (k, candidate) in candidates.iter().enumerate() {
         let rank = k + 1;
-        if options.budget.is_some_and(|b| clock.elapsed() >= b) {
+        let out_of_time = options.budget.is_some_and(|b| clock.elapsed() >= b);
+        if plan.is_some() || out_of_time {
             attempts.push(Attempt {
                 node: candidate.node,
                 rank,
@@ -189,108 +209,134 @@ pub fn plan_push(
             continue;
         }
         let started = Instant::now();
-        let (outcome, plan) = attempt(model, tree, &obstacles, candidate, rank, start, options);
+        let result = reach(model, tree, obstacles, candidate, start).and_then(|goals| {
+            let snapshots =
+                push_snapshots(tree, candidate, obstacles).ok_or(Outcome::PushInfeasible)?;
+            execute(
+                model, tree, obstacles, &snapshots, candidate, &goals, start, options,
+            )
+        });
+        let outcome = match result {
+            Ok(executed) => {
+                plan = Some(PushPlan { rank, ..executed });
+                Outcome::Planned
+            }
+            Err(outcome) => outcome,
+        };
         attempts.push(Attempt {
             node: candidate.node,
             rank,
             outcome,
             ms: started.elapsed().as_secs_f64() * 1e3,
         });
-        if let Some(plan) = plan {
-            // Later candidates are not needed.
-            for (k2, c) in candidates.iter().enumerate().skip(k + 1) {
-                attempts.push(Attempt {
-                    node: c.node,
-                    rank: k2 + 1,
-                    outcome: Outcome::Skipped,
-                    ms: 0.0,
-                });
-            }
-            return Ok(PlanReport {
-                plan: Some(plan),
-                attempts,
-                total_ms: clock.elapsed().as_secs_f64() * 1e3,
-            });
-        }
     }
     Ok(PlanReport {
-        plan: None,
+        plan,
         attempts,
         total_ms: clock.elapsed().as_secs_f64() * 1e3,
     })
 }
 
-fn attempt(
+/// What the gripper may touch at the pre-contact pose: the contacted branch
+/// and the branches leaving its node.
+fn near_contact(tree: &Tree, node: usize) -> Allowed {
+    Allowed {
+        gripper_branches: std::iter::once(node)
+            .chain(tree.children(node).iter().copied())
+            .collect(),
+    }
+}
+
+/// The cheap test of whether the arm can carry out `push` at all, before
+/// any simulation or RRT* (tens of µs): the pre-contact pose has IK
+/// solutions within the joint limits, some are collision-free, and from
+/// some of those the straight push at constant tool orientation stays on
+/// one IK branch. Returns those pre-contact configurations, or why none.
+pub fn reach(
     model: &CollisionModel,
     tree: &Tree,
     obstacles: &TreeObstacles,
-    candidate: &PushCandidate,
-    rank: usize,
+    push: &Push,
     start: &Config,
-    options: &PlanOptions,
-) -> (Outcome, Option<PushPlan>) {
-    if candidate.node == 0 || candidate.node >= tree.len() {
-        return (Outcome::InvalidCandidate, None);
+) -> Result<Vec<Config>, Outcome> {
+    if push.node == 0 || push.node >= tree.len() {
+        return Err(Outcome::InvalidCandidate);
     }
-    let Some(poses) = pre_contact_poses(tree, candidate) else {
-        return (Outcome::InvalidCandidate, None);
-    };
+    let poses = pre_contact_poses(tree, push).ok_or(Outcome::InvalidCandidate)?;
     let goals: Vec<Config> = poses
         .iter()
         .flat_map(|p| model.robot.inverse_kinematics(p, start))
         .collect();
     if goals.is_empty() {
-        return (Outcome::Unreachable, None);
+        return Err(Outcome::Unreachable);
     }
-    let node = candidate.node;
-    let near_contact = Allowed {
-        gripper_branches: std::iter::once(node)
-            .chain(tree.children(node).iter().copied())
-            .collect(),
-    };
-    let approach_scene = PlanningScene::new(model, obstacles, near_contact);
+    let scene = PlanningScene::new(model, obstacles, near_contact(tree, push.node));
     let free: Vec<Config> = goals
         .into_iter()
-        .filter(|g| approach_scene.config_valid(g))
+        .filter(|g| scene.config_valid(g))
         .collect();
     if free.is_empty() {
-        return (Outcome::GoalInCollision, None);
+        return Err(Outcome::GoalInCollision);
     }
-    // Obstacles along the push: the tree at rest until contact, then the
-    // simulated tree every PUSH_SNAPSHOT of push.
-    let Some(snapshots) = push_snapshots(tree, candidate) else {
-        return (Outcome::PushInfeasible, None);
-    };
+    let direction = push.vector.normalize();
+    let travel = push.vector.norm() + APPROACH_OFFSET;
+    let anywhere = |_: &Config, _: &Config, _: f64| true;
+    let feasible: Vec<Config> = free
+        .into_iter()
+        .filter(|g| push_line(model, &anywhere, g, &direction, travel).is_some())
+        .collect();
+    if feasible.is_empty() {
+        return Err(Outcome::PushInfeasible);
+    }
+    Ok(feasible)
+}
+
+/// Carries out a reachable push: checks the straight push from each of
+/// `goals` (from [`reach`]) against the tree as it deforms (`snapshots`,
+/// from [`push_snapshots`]), plans the approach from `start` with RRT*,
+/// shortcuts and times it. The plan's `rank` is left 0 for the caller.
+#[allow(clippy::too_many_arguments)]
+pub fn execute(
+    model: &CollisionModel,
+    tree: &Tree,
+    obstacles: &TreeObstacles,
+    snapshots: &[TreeObstacles],
+    push: &Push,
+    goals: &[Config],
+    start: &Config,
+    options: &PlanOptions,
+) -> Result<PushPlan, Outcome> {
+    let node = push.node;
+    let approach_scene = PlanningScene::new(model, obstacles, near_contact(tree, node));
     let pushed = Allowed {
         gripper_branches: tree.subtree(node),
     };
-    let direction = candidate.push.normalize();
-    let travel = candidate.push.norm() + APPROACH_OFFSET;
-    let scene_at = |distance: f64| -> PlanningScene<'_> {
+    let direction = push.vector.normalize();
+    let travel = push.vector.norm() + APPROACH_OFFSET;
+    // Obstacles along the push: the tree at rest until contact, then the
+    // simulated tree every PUSH_SNAPSHOT of push.
+    let edge_free = |a: &Config, b: &Config, distance: f64| -> bool {
         let contact = (distance - APPROACH_OFFSET).max(0.0);
         let index = ((contact / PUSH_SNAPSHOT).ceil() as usize).min(snapshots.len() - 1);
-        let obstacles = if distance <= APPROACH_OFFSET {
+        let at = if distance <= APPROACH_OFFSET {
             obstacles
         } else {
             &snapshots[index]
         };
-        PlanningScene::new(model, obstacles, pushed.clone())
+        PlanningScene::new(model, at, pushed.clone()).edge_valid(a, b)
     };
-    let mut pushes: Vec<(Config, Vec<Config>)> = Vec::new();
-    for goal in free {
-        if let Some(line) = push_line(model, &scene_at, &goal, &direction, travel) {
-            pushes.push((goal, line));
-        }
-    }
+    let pushes: Vec<(Config, Vec<Config>)> = goals
+        .iter()
+        .filter_map(|g| push_line(model, &edge_free, g, &direction, travel).map(|l| (*g, l)))
+        .collect();
     if pushes.is_empty() {
-        return (Outcome::PushInfeasible, None);
+        return Err(Outcome::PushInfeasible);
     }
     let goal_configs: Vec<Config> = pushes.iter().map(|p| p.0).collect();
     let path = match rrt_star(start, &goal_configs, &approach_scene, &options.rrt) {
         Ok(path) => path,
-        Err(RrtError::NoPath { .. } | RrtError::NoValidGoal | RrtError::StartInvalid) => {
-            return (Outcome::NoPath, None);
-        }
+        Err(RrtError::StartInvalid) => return Err(Outcome::StartInCollision),
+        Err(RrtError::NoPath { .. } | RrtError::NoValidGoal) => return Err(Outcome::NoPath),
     };
     let smooth = shortcut(
         &path.waypoints,
@@ -312,42 +358,45 @@ fn attempt(
         t += step_time.max(joint_time);
         trajectory.push(TimedPoint { t, q: w[1] });
     }
-    (
-        Outcome::Planned,
-        Some(PushPlan {
-            node,
-            rank,
-            push: candidate.push,
-            trajectory,
-            push_start_index,
-        }),
-    )
+    Ok(PushPlan {
+        node,
+        rank: 0,
+        push: push.vector,
+        trajectory,
+        push_start_index,
+    })
 }
 
 /// The tree during the push: snapshot k is the steady state after k·1 cm
-/// of push (k = 0 is the tree at rest, the last the full push). `None` when
-/// the simulator rejects part of the push.
-fn push_snapshots(tree: &Tree, candidate: &PushCandidate) -> Option<Vec<TreeObstacles>> {
-    let length = candidate.push.norm();
+/// of push (k = 0 is the tree at rest, the last the full push), each with
+/// the fixed obstacles of `rest`. `None` when the simulator rejects part of
+/// the push.
+pub fn push_snapshots(
+    tree: &Tree,
+    push: &Push,
+    rest: &TreeObstacles,
+) -> Option<Vec<TreeObstacles>> {
+    let length = push.vector.norm();
     let count = (length / PUSH_SNAPSHOT).ceil().max(1.0) as usize;
-    let mut snapshots = vec![TreeObstacles::new(tree)];
+    let mut snapshots = vec![rest.clone()];
     for k in 1..=count {
-        let push = Push {
-            node: candidate.node,
-            vector: candidate.push * (k as f64 / count as f64),
+        let partial = Push {
+            node: push.node,
+            vector: push.vector * (k as f64 / count as f64),
         };
-        let outcome = simulate(tree, &push, &SimConfig::default()).ok()?;
-        snapshots.push(TreeObstacles::deformed(tree, &outcome.final_positions));
+        let outcome = simulate(tree, &partial, &SimConfig::default()).ok()?;
+        snapshots.push(rest.with_tree_at(tree, &outcome.final_positions));
     }
     Some(snapshots)
 }
 
 /// Joint configurations along the straight push from `goal`, every
-/// [`PUSH_STEP`], or `None` when IK breaks or something collides. The
-/// scene for a step depends on how far the tool has moved.
-fn push_line<'a>(
-    model: &'a CollisionModel,
-    scene_at: &dyn Fn(f64) -> PlanningScene<'a>,
+/// [`PUSH_STEP`], or `None` when IK breaks (no solution, or a jump to
+/// another IK branch) or `edge_free(from, to, distance travelled)` refuses
+/// a step.
+fn push_line(
+    model: &CollisionModel,
+    edge_free: &dyn Fn(&Config, &Config, f64) -> bool,
     goal: &Config,
     direction: &Vector3<f64>,
     travel: f64,
@@ -367,7 +416,7 @@ fn push_line<'a>(
         let jump = (0..6)
             .map(|i| (next[i] - previous[i]).abs())
             .fold(0.0, f64::max);
-        if jump > PUSH_MAX_JOINT_STEP || !scene_at(distance).edge_valid(&previous, &next) {
+        if jump > PUSH_MAX_JOINT_STEP || !edge_free(&previous, &next, distance) {
             return None;
         }
         line.push(next);

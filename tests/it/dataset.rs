@@ -307,16 +307,19 @@ fn plan_cli_reports_attempts_and_trajectory_as_json() {
         .success()
     );
     let tree = format!("{out}/N12/tree_000.urdf");
-    // Push the root's first branch sideways: the planner answers either way.
+    // The target is what a paper-style push does to the tree.
+    let loaded = treemanip::tree::urdf::read_file(std::path::Path::new(&tree)).unwrap();
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(2);
+    let push = loop {
+        let p = treemanip::sim::sampling::PushDistribution::default().sample(&loaded, &mut rng);
+        if treemanip::sim::simulate(&loaded, &p, &Default::default()).is_ok() {
+            break p;
+        }
+    };
+    let node = push.node.to_string();
+    let vector = format!("{},{},{}", push.vector.x, push.vector.y, push.vector.z);
     let run = treemanip(&[
-        "plan",
-        "--tree",
-        &tree,
-        "--node",
-        "2",
-        "--push",
-        "0,-0.06,0.01",
-        "--json",
+        "plan", "--tree", &tree, "--node", &node, "--push", &vector, "--json",
     ]);
     assert!(
         run.status.success(),
@@ -325,17 +328,33 @@ fn plan_cli_reports_attempts_and_trajectory_as_json() {
     );
     let v: Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(v["joint_names"].as_array().unwrap().len(), 6);
-    assert_eq!(v["attempts"][0]["rank"], 1);
-    assert_eq!(v["attempts"][0]["node"], 2);
+    assert_eq!(v["strategy"], "model");
+    assert!(!v["attempts"].as_array().unwrap().is_empty());
+    assert!(v["no_action_error"].as_f64().unwrap() > 0.0);
     match v["status"].as_str().unwrap() {
         "planned" => {
             let trajectory = v["plan"]["trajectory"].as_array().unwrap();
             assert!(v["plan"]["push_start_index"].as_u64().unwrap() < trajectory.len() as u64);
             assert_eq!(trajectory[0]["q"].as_array().unwrap().len(), 6);
+            assert!(
+                v["predicted_error"].as_f64().unwrap() < v["no_action_error"].as_f64().unwrap()
+            );
         }
         "no_plan" => assert!(v["plan"].is_null()),
         other => panic!("status {other}"),
     }
+    // A push that cannot be simulated makes no target: a clear error.
+    let far = treemanip(&[
+        "plan",
+        "--tree",
+        &tree,
+        "--node",
+        "2",
+        "--push",
+        "0,-0.6,0.01",
+    ]);
+    assert!(!far.status.success());
+    assert!(String::from_utf8_lossy(&far.stderr).contains("cannot be simulated"));
     let bad = treemanip(&[
         "plan",
         "--tree",

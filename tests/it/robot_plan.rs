@@ -2,10 +2,9 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
-use treemanip::robot::plan::{
-    APPROACH_OFFSET, Outcome, PlanOptions, PushCandidate, plan_push, pre_contact_poses,
-};
+use treemanip::robot::plan::{APPROACH_OFFSET, Outcome, PlanOptions, plan_push, pre_contact_poses};
 use treemanip::robot::{Ur5, ur5};
+use treemanip::sim::Push;
 use treemanip::tree::{Tree, Wood};
 
 /// Trunk 0 → 1 → 2 up the z axis, a side branch 1 → 3 along +x, and a
@@ -41,9 +40,9 @@ fn a_candidate_whose_pre_contact_pose_is_inside_the_tree_is_skipped() {
     let tree = scene_tree();
     let model = model();
     // Pushing node 3 up puts the gripper under branch 3, where branch 4 runs.
-    let up = PushCandidate {
+    let up = Push {
         node: 3,
-        push: Vector3::new(0.0, 0.0, 0.1),
+        vector: Vector3::new(0.0, 0.0, 0.1),
     };
     let [pose, _] = pre_contact_poses(&tree, &up).unwrap();
     assert!(
@@ -51,9 +50,9 @@ fn a_candidate_whose_pre_contact_pose_is_inside_the_tree_is_skipped() {
     );
     // Pushing it 5 cm sideways (−y), slightly up, is free, and short enough
     // that the leaf stays in the slot.
-    let side = PushCandidate {
+    let side = Push {
         node: 3,
-        push: Vector3::new(0.0, -0.05, 0.015),
+        vector: Vector3::new(0.0, -0.05, 0.015),
     };
     let report = plan_push(
         &model,
@@ -84,7 +83,10 @@ fn the_plan_approaches_then_pushes_along_the_requested_line() {
     let tree = scene_tree();
     let model = model();
     let push = Vector3::new(0.0, -0.05, 0.015);
-    let candidate = PushCandidate { node: 3, push };
+    let candidate = Push {
+        node: 3,
+        vector: push,
+    };
     let report = plan_push(
         &model,
         &tree,
@@ -142,17 +144,17 @@ fn unusable_and_unreachable_candidates_are_reported() {
     let tree = scene_tree();
     let model = model();
     let candidates = [
-        PushCandidate {
+        Push {
             node: 0,
-            push: Vector3::new(0.0, 0.1, 0.0),
+            vector: Vector3::new(0.0, 0.1, 0.0),
         }, // the root
-        PushCandidate {
+        Push {
             node: 3,
-            push: Vector3::new(0.1, 0.0, 0.0),
+            vector: Vector3::new(0.1, 0.0, 0.0),
         }, // along the branch
-        PushCandidate {
+        Push {
             node: 2,
-            push: Vector3::new(0.0, 0.0, 0.0),
+            vector: Vector3::new(0.0, 0.0, 0.0),
         }, // no push
     ];
     let report = plan_push(
@@ -185,9 +187,9 @@ fn unusable_and_unreachable_candidates_are_reported() {
     let report = plan_push(
         &model,
         &far,
-        &[PushCandidate {
+        &[Push {
             node: 3,
-            push: Vector3::new(0.0, -0.1, 0.0),
+            vector: Vector3::new(0.0, -0.1, 0.0),
         }],
         &ur5::HOME,
         &PlanOptions::default(),

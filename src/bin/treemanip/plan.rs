@@ -1,25 +1,48 @@
-//! `treemanip plan` and `treemanip eval plan`.
+//! `treemanip plan` and `treemanip eval plan`: both call the one planner
+//! ([`treemanip::planner::Planner`]) that `/v1/plan` calls.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use nalgebra::{Isometry3, Vector3};
-use serde::Serialize;
+use rayon::prelude::*;
 use treemanip::dataset::Split;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
-use treemanip::eval::plan::{ORACLE_GREEDY, evaluate, summarise};
+use treemanip::eval::plan::{
+    EpisodeResult, Setting, evaluation_region, plan_episode, policy_top_error, summarise,
+    to_markdown,
+};
 use treemanip::eval::plots::rank_histogram_svg;
-use treemanip::robot::collision::CollisionModel;
-use treemanip::robot::plan::{PlanOptions, PushCandidate, plan_push};
-use treemanip::robot::{Ur5, ur5};
+use treemanip::infer::models::{ModelSet, ServedModel};
+use treemanip::planner::{Planner, Query, Stance, Strategy};
+use treemanip::robot::ur5;
+use treemanip::sim::{Push, SimConfig, simulate};
 
 use crate::args::{TreePush, parse_numbers, parse_vector};
 use crate::trees::{NodeSizes, parse_sizes};
 
+#[derive(Clone, Copy, ValueEnum)]
+enum StrategyArg {
+    Model,
+    Physics,
+    Paper,
+}
+
+impl From<StrategyArg> for Strategy {
+    fn from(s: StrategyArg) -> Self {
+        match s {
+            StrategyArg::Model => Strategy::Model,
+            StrategyArg::Physics => Strategy::Physics,
+            StrategyArg::Paper => Strategy::Paper,
+        }
+    }
+}
+
 #[derive(Args)]
 pub struct PlanArgs {
+    /// The tree, and a push whose simulated result is the target shape.
     #[command(flatten)]
     target: TreePush,
     /// Start joint configuration (rad), six comma-separated values.
@@ -28,9 +51,18 @@ pub struct PlanArgs {
     start: Option<[f64; 6]>,
     /// Arm base position `X,Y,Z` (m), identity orientation. Default: the
     /// paper's (−0.5, 0, 0.1).
-    #[arg(long, value_parser = parse_vector, allow_hyphen_values = true)]
+    #[arg(long, value_parser = parse_vector, allow_hyphen_values = true, conflicts_with = "base_region")]
     base: Option<Vector3<f64>>,
-    /// RRT* seed.
+    /// Let the planner place the base within ±0.5 m of the default in x and
+    /// y and 0.1-1.0 m high.
+    #[arg(long)]
+    base_region: bool,
+    #[arg(long, value_enum, default_value = "model")]
+    strategy: StrategyArg,
+    /// Directory of the ONNX models.
+    #[arg(long, default_value = "models")]
+    models_dir: PathBuf,
+    /// Seed of the search and of RRT*.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Print the whole plan (trajectory included) as JSON.
@@ -38,61 +70,102 @@ pub struct PlanArgs {
     json: bool,
 }
 
-#[derive(Serialize)]
-struct PlanJson<'a> {
-    status: &'static str,
-    joint_names: [&'static str; 6],
-    #[serde(flatten)]
-    report: &'a treemanip::robot::plan::PlanReport,
+/// The GNN policy and forward model from a models directory.
+fn load_models(dir: &std::path::Path) -> anyhow::Result<ModelSet> {
+    let set = ModelSet::load_dir(dir, None, rayon::current_num_threads(), false)
+        .with_context(|| format!("cannot load the models in {}", dir.display()))?;
+    for name in ["policy_gnn", "forward_gnn"] {
+        if set.get(name).is_none() {
+            bail!("{} has no {name}.onnx", dir.display());
+        }
+    }
+    Ok(set)
+}
+
+fn gnns(set: &ModelSet) -> (&ServedModel, &ServedModel) {
+    (
+        set.get("policy_gnn").expect("checked on load"),
+        set.get("forward_gnn").expect("checked on load"),
+    )
 }
 
 pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
     let tree = args.target.load_tree()?;
-    let base = args
-        .base
-        .map_or_else(ur5::default_base, |b| Isometry3::translation(b.x, b.y, b.z));
-    let model = CollisionModel::new(Ur5::default().with_base(base));
-    let mut options = PlanOptions::default();
-    options.rrt.seed = args.seed;
-    let start = args.start.unwrap_or(ur5::HOME);
-    let candidate = PushCandidate {
+    let push = Push {
         node: args.target.node,
-        push: args.target.push,
+        vector: args.target.push,
     };
-    let report = plan_push(&model, &tree, &[candidate], &start, &options).context("cannot plan")?;
+    let outcome = simulate(&tree, &push, &SimConfig::default())
+        .context("the push that makes the target cannot be simulated")?;
+    let set = load_models(&args.models_dir)?;
+    let (policy, forward) = gnns(&set);
+    let mut query = Query::new(tree, outcome.final_positions);
+    query.strategy = args.strategy.into();
+    query.start = args.start;
+    query.seed = args.seed;
+    query.stance = if args.base_region {
+        Stance::Region(evaluation_region())
+    } else {
+        Stance::Fixed(
+            args.base
+                .map_or_else(ur5::default_base, |b| Isometry3::translation(b.x, b.y, b.z)),
+        )
+    };
+    let plan = Planner::default()
+        .plan(&query, policy, Some(forward))
+        .context("cannot plan")?;
     if args.json {
+        #[derive(serde::Serialize)]
+        struct PlanJson<'a> {
+            status: &'static str,
+            joint_names: [&'static str; 6],
+            #[serde(flatten)]
+            plan: &'a treemanip::planner::Plan,
+        }
         let json = PlanJson {
-            status: if report.plan.is_some() {
+            status: if plan.plan.is_some() {
                 "planned"
             } else {
                 "no_plan"
             },
             joint_names: ur5::JOINT_NAMES,
-            report: &report,
+            plan: &plan,
         };
         println!("{}", serde_json::to_string_pretty(&json)?);
         return Ok(());
     }
-    for a in &report.attempts {
+    for a in &plan.attempts {
+        let predicted = a.predicted_error.map_or(String::new(), |e| {
+            format!(", predicted error {:.2} cm", 100.0 * e)
+        });
         println!(
-            "candidate {} (node {}): {:?} in {:.1} ms",
-            a.rank, a.node, a.outcome, a.ms
+            "node {} (policy rank {}), push [{:.3}, {:.3}, {:.3}] m: {:?} in {:.1} ms{predicted}",
+            a.node, a.rank, a.push[0], a.push[1], a.push[2], a.outcome, a.ms
         );
     }
-    match &report.plan {
+    println!(
+        "base at [{:.2}, {:.2}, {:.2}] m, yaw {:.2} rad; no action leaves {:.2} cm; {} predictions",
+        plan.base.position[0],
+        plan.base.position[1],
+        plan.base.position[2],
+        plan.base.yaw,
+        100.0 * plan.no_action_error,
+        plan.evaluations
+    );
+    match &plan.plan {
         Some(p) => {
             let end = p.trajectory.last().map_or(0.0, |t| t.t);
             let push_start = p.trajectory[p.push_start_index].t;
             println!(
-                "planned: {} trajectory points, approach {:.2} s, push {:.2} s (starts at index {}), planning {:.1} ms",
+                "planned node {}: {} trajectory points, approach {:.2} s, push {:.2} s, planning {:.1} ms",
+                p.node,
                 p.trajectory.len(),
                 push_start,
                 end - push_start,
-                p.push_start_index,
-                report.total_ms
+                plan.total_ms
             );
         }
-        None => println!("no plan ({:.1} ms)", report.total_ms),
+        None => println!("no plan ({:.1} ms)", plan.total_ms),
     }
     Ok(())
 }
@@ -103,12 +176,15 @@ pub struct EvalPlanArgs {
     #[arg(long, default_value = "10..=30", value_parser = parse_sizes)]
     sizes: NodeSizes,
     /// Episodes per size (test split, as `dataset collect` makes them).
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 10)]
     per_size: usize,
     /// Dataset seed.
     #[arg(long, default_value_t = 7)]
     seed: u64,
-    /// Where to write plan_eval.json, plan_eval.csv and plan_rank_histogram.svg.
+    /// Directory of the ONNX models.
+    #[arg(long, default_value = "models")]
+    models_dir: PathBuf,
+    /// Where to write plan_eval.{md,json} and plan_fig10_*.svg.
     #[arg(long, default_value = "docs/results")]
     out: PathBuf,
 }
@@ -132,71 +208,104 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
         .iter()
         .flat_map(|d| d.episodes.iter().map(move |e| (d.n, d.tree_of(e), e)))
         .collect();
-    let model = CollisionModel::new(Ur5::default());
-    let bar = crate::progress::bar(episodes.len() as u64, "episodes");
-    let results = evaluate(
-        &model,
-        &episodes,
-        &ur5::HOME,
-        &PlanOptions::default(),
-        &|| bar.inc(1),
-    );
-    bar.finish_and_clear();
-    let summary = summarise(&results);
+    let set = load_models(&args.models_dir)?;
+    let (policy, forward) = gnns(&set);
+    let planner = Planner::default();
+    let mut rows = Vec::new();
+    let mut per_setting: Vec<(String, Vec<EpisodeResult>)> = Vec::new();
+    for setting in Setting::all() {
+        let name = setting.name();
+        let bar = crate::progress::bar(episodes.len() as u64, &name);
+        // One episode at a time: plan times are the latency one request sees.
+        let results: Vec<EpisodeResult> = episodes
+            .iter()
+            .map(|&(n, tree, e)| {
+                let r = plan_episode(&planner, policy, forward, n, tree, e, setting);
+                bar.inc(1);
+                r
+            })
+            .collect();
+        bar.finish_and_clear();
+        let summary = summarise(&name, &results);
+        println!(
+            "{name}: planned {:.1} %, helpful {:.1} %, executed error {:.2} cm, plan ms p50 {:.0} p95 {:.0}",
+            100.0 * summary.planned,
+            100.0 * summary.helpful,
+            100.0 * summary.executed_error,
+            summary.ms_p50,
+            summary.ms_p95
+        );
+        rows.push(summary);
+        per_setting.push((name, results));
+    }
+    let reference: Vec<EpisodeResult> = episodes
+        .par_iter()
+        .map(|&(n, tree, e)| {
+            let none =
+                treemanip::planner::predict::max_node_error(tree.positions(), &e.final_positions);
+            EpisodeResult {
+                n,
+                planned: false,
+                rank: None,
+                executed_error: policy_top_error(policy, tree, e),
+                no_action_error: none,
+                ms: f64::NAN,
+                outcomes: Vec::new(),
+            }
+        })
+        .collect();
+    let mut top = summarise("policy top (arm ignored)", &reference);
+    top.planned = f64::NAN;
+    let no_action: Vec<EpisodeResult> = reference
+        .iter()
+        .map(|r| EpisodeResult {
+            executed_error: r.no_action_error,
+            ..r.clone()
+        })
+        .collect();
+    let mut none = summarise("no action", &no_action);
+    none.planned = f64::NAN;
+    rows.push(top);
+    rows.push(none);
     std::fs::create_dir_all(&args.out)?;
+    let table = to_markdown(&rows);
+    let cpu = treemanip::nn::train::checkpoint::cpu_model();
+    let md = format!(
+        "# Planning evaluation\n\n`treemanip eval plan --per-size {} --seed {}` on the test split, N = {:?}, {} episodes per setting, one at a time; CPU: {cpu}, {} threads.\nThe target is the episode's final shape; the planner gets the tree and the target only and ranks with the contact policy. Executed error: the planned push run in the simulator, largest node distance to the target; an episode with no plan counts as No Action. Base region: x and y within ±0.5 m of the default base, z 0.1-1.0 m.\n\n{table}",
+        args.per_size,
+        args.seed,
+        args.sizes.0,
+        episodes.len(),
+        rayon::current_num_threads()
+    );
+    std::fs::write(args.out.join("plan_eval.md"), &md)?;
     std::fs::write(
         args.out.join("plan_eval.json"),
-        serde_json::to_string_pretty(&summary)?,
+        serde_json::to_string_pretty(
+            &serde_json::json!({ "rows": rows, "episodes": per_setting }),
+        )?,
     )?;
-    let mut csv = String::from("n,episodes,planned,success_rate,median_ms\n");
-    for (n, total, ok, rate, ms) in &summary.per_size {
-        csv.push_str(&format!("{n},{total},{ok},{rate:.4},{ms:.2}\n"));
+    for (row, (name, _)) in rows.iter().zip(&per_setting) {
+        let figure = args
+            .out
+            .join(format!("plan_fig10_{}.svg", name.replace('/', "_")));
+        rank_histogram_svg(
+            &row.rank_histogram,
+            row.episodes,
+            &format!(
+                "{name}: planned policy rank, {} episodes, {:.1} % planned",
+                row.episodes,
+                100.0 * row.planned
+            ),
+            &figure,
+            15,
+        )
+        .map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", figure.display()))?;
     }
-    std::fs::write(args.out.join("plan_eval.csv"), csv)?;
-    let figure = args.out.join("plan_rank_histogram.svg");
-    rank_histogram_svg(
-        &summary.rank_histogram,
-        summary.episodes,
-        &format!(
-            "Algorithm 1: planned rank, {} episodes, {:.1} % planned",
-            summary.episodes,
-            100.0 * summary.success_rate
-        ),
-        &figure,
-        15,
-    )
-    .map_err(|e| anyhow::anyhow!("cannot draw {}: {e}", figure.display()))?;
-
-    println!("candidate ranking: {ORACLE_GREEDY}");
+    println!("{table}");
     println!(
-        "{:>4} {:>9} {:>8} {:>9} {:>10}",
-        "N", "episodes", "planned", "success", "median ms"
-    );
-    for (n, total, ok, rate, ms) in &summary.per_size {
-        println!(
-            "{n:>4} {total:>9} {ok:>8} {:>8.1}% {ms:>10.1}",
-            100.0 * rate
-        );
-    }
-    println!(
-        "all: {}/{} planned ({:.1} %, paper 82.9 %); planning time p50 {:.1} ms, p95 {:.1} ms, max {:.1} ms",
-        summary.planned,
-        summary.episodes,
-        100.0 * summary.success_rate,
-        summary.ms_p50,
-        summary.ms_p95,
-        summary.ms_max
-    );
-    let top = summary.rank_histogram.get(&1).copied().unwrap_or(0);
-    println!(
-        "planned at rank 1: {:.1} % of episodes (paper 22.9 % with its learned policy); outcomes of tried candidates: {:?}",
-        100.0 * top as f64 / summary.episodes as f64,
-        summary.outcomes
-    );
-    println!(
-        "wrote {}/plan_eval.{{json,csv}} and {} in {:.1} s",
+        "wrote {}/plan_eval.{{md,json}} and plan_fig10_*.svg in {:.1} s",
         args.out.display(),
-        figure.display(),
         started.elapsed().as_secs_f64()
     );
     Ok(())

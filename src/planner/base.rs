@@ -1,0 +1,108 @@
+//! Where a mobile arm should stand for a push: a few base poses behind the
+//! grip point along the push, within the allowed region, each turned to
+//! face the grip point (the way the paper's fixed mount faces the tree).
+
+use nalgebra::{Isometry3, Vector3};
+use serde::Serialize;
+
+use crate::robot::rrt::Config;
+use crate::robot::ur5;
+use crate::sim::{GRIP_OFFSET, Push};
+use crate::tree::Tree;
+
+/// The box of allowed base positions (m, tree frame) and, optionally, of
+/// base headings about the vertical axis (rad).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BaseRegion {
+    pub min: Vector3<f64>,
+    pub max: Vector3<f64>,
+    pub yaw: Option<(f64, f64)>,
+}
+
+/// Where the arm's `base_link` stands and which way it faces.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BasePose {
+    /// m, tree frame.
+    pub position: [f64; 3],
+    /// Rotation about the vertical axis (rad).
+    pub yaw: f64,
+}
+
+impl BasePose {
+    pub fn isometry(&self) -> Isometry3<f64> {
+        Isometry3::new(Vector3::from(self.position), Vector3::z() * self.yaw)
+    }
+
+    /// The pose of a base given as an isometry (its heading read from it).
+    pub fn of(iso: &Isometry3<f64>) -> Self {
+        let t = iso.translation.vector;
+        Self {
+            position: [t.x, t.y, t.z],
+            yaw: iso.rotation.euler_angles().2,
+        }
+    }
+}
+
+/// Horizontal distances (m) from the grip point at which the base is tried:
+/// the UR5 reaches about 0.85 m, and pushes work best mid-reach.
+const STAND_OFF: [f64; 2] = [0.5, 0.65];
+/// Sideways offsets (m) across the push.
+const SIDEWAYS: [f64; 3] = [0.0, 0.2, -0.2];
+/// Base heights below the grip point (m).
+const BELOW: [f64; 2] = [0.3, 0.05];
+
+/// Candidate base poses for `push`, most promising first, all inside
+/// `region` (duplicates after clamping removed).
+pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push) -> Vec<BasePose> {
+    let Some(branch) = tree.branch_direction(push.node) else {
+        return Vec::new();
+    };
+    let grip = tree.position(push.node) - branch * GRIP_OFFSET;
+    let mut ahead = Vector3::new(push.vector.x, push.vector.y, 0.0);
+    if ahead.norm() < 1e-6 {
+        // A vertical push: stand on the grip point's side of the trunk.
+        ahead = -Vector3::new(grip.x, grip.y, 0.0);
+        if ahead.norm() < 1e-6 {
+            ahead = Vector3::x();
+        }
+    }
+    let ahead = ahead.normalize();
+    let across = Vector3::z().cross(&ahead);
+    let mut out: Vec<BasePose> = Vec::new();
+    for &below in &BELOW {
+        for &stand_off in &STAND_OFF {
+            for &side in &SIDEWAYS {
+                let wanted = grip.coords - ahead * stand_off + across * side - Vector3::z() * below;
+                let position = wanted.sup(&region.min).inf(&region.max);
+                let facing = grip.coords - position;
+                let mut yaw = facing.y.atan2(facing.x);
+                if let Some((lo, hi)) = region.yaw {
+                    yaw = yaw.clamp(lo, hi);
+                }
+                let pose = BasePose {
+                    position: [position.x, position.y, position.z],
+                    yaw,
+                };
+                let duplicate = out.iter().any(|b| {
+                    (Vector3::from(b.position) - position).norm() < 0.02
+                        && (b.yaw - yaw).abs() < 0.05
+                });
+                if !duplicate {
+                    out.push(pose);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Start configurations tried at a chosen base when the request gives none:
+/// the paper's home pose, then the arm folded up and back from the tree.
+pub fn tucked_starts() -> [Config; 3] {
+    use std::f64::consts::{FRAC_PI_2, PI};
+    [
+        ur5::HOME,
+        [0.0, -FRAC_PI_2, 2.6, -PI / 2.0 - 0.5, -FRAC_PI_2, 0.0],
+        [PI, -FRAC_PI_2, 2.6, -PI / 2.0 - 0.5, -FRAC_PI_2, 0.0],
+    ]
+}

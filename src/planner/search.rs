@@ -1,0 +1,163 @@
+//! Choosing the push vector for each candidate node: a few rounds of the
+//! cross-entropy method around the contact policy's push T_j, every round of
+//! every node predicted in one batch, each push scored by the predicted
+//! largest node distance to the target (the paper's metric).
+
+use nalgebra::{Point3, Vector3};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use super::predict::{Predictor, max_node_error};
+use crate::infer::InferError;
+use crate::sim::Push;
+use crate::tree::Tree;
+
+/// The paper's pushes are 5-15 cm; the forward model was trained on them.
+pub const MIN_PUSH: f64 = 0.05;
+pub const MAX_PUSH: f64 = 0.15;
+
+#[derive(Debug, Clone)]
+pub struct SearchOptions {
+    pub rounds: usize,
+    /// Pushes sampled per node and round.
+    pub samples: usize,
+    /// The best this many of a node's round set its next mean and spread.
+    pub elite: usize,
+    /// Spread of the first round around T_j (m).
+    pub initial_sigma: f64,
+    /// Predictions allowed in all (rounds stop early when reached).
+    pub max_evaluations: usize,
+    pub seed: u64,
+}
+
+impl Default for SearchOptions {
+    fn default() -> Self {
+        Self {
+            rounds: 3,
+            samples: 8,
+            elite: 3,
+            initial_sigma: 0.03,
+            max_evaluations: 96,
+            seed: 1,
+        }
+    }
+}
+
+/// A push and the error it is predicted to leave.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Scored {
+    pub push: Push,
+    /// Predicted max node distance to the target after the push (m).
+    pub predicted_error: f64,
+}
+
+/// `v` with its length clamped into the trained range.
+fn clamp_length(v: Vector3<f64>) -> Option<Vector3<f64>> {
+    let length = v.norm();
+    (length.is_finite() && length > 1e-9).then(|| v * (length.clamp(MIN_PUSH, MAX_PUSH) / length))
+}
+
+fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
+    // Box-Muller; 1 - u keeps the logarithm finite.
+    let (u, v): (f64, f64) = (rng.random(), rng.random());
+    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+}
+
+/// Searches a push for each seed (node, T_j). `feasible` prunes pushes the
+/// arm cannot carry out before they are predicted. Returns every scored
+/// push, best first, and the number of predictions made.
+pub fn search_pushes(
+    tree: &Tree,
+    targets: &[Point3<f64>],
+    seeds: &[Push],
+    predictor: &dyn Predictor,
+    feasible: &(dyn Fn(&Push) -> bool + Sync),
+    options: &SearchOptions,
+) -> Result<(Vec<Scored>, usize), InferError> {
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    // Per seed: mean push and isotropic spread.
+    let mut state: Vec<(Vector3<f64>, f64)> = seeds
+        .iter()
+        .filter_map(|s| clamp_length(s.vector).map(|v| (v, options.initial_sigma)))
+        .collect();
+    let seeds: Vec<&Push> = seeds
+        .iter()
+        .filter(|s| clamp_length(s.vector).is_some())
+        .collect();
+    let mut scored = Vec::new();
+    let mut evaluations = 0;
+    for round in 0..options.rounds {
+        let mut round_pushes: Vec<(usize, Push)> = Vec::new();
+        for (k, (seed, (mean, sigma))) in seeds.iter().zip(&state).enumerate() {
+            for i in 0..options.samples {
+                let vector = if round == 0 && i == 0 {
+                    *mean // the policy's own push is always a candidate
+                } else {
+                    let noise =
+                        Vector3::new(gaussian(&mut rng), gaussian(&mut rng), gaussian(&mut rng));
+                    match clamp_length(mean + noise * *sigma) {
+                        Some(v) => v,
+                        None => continue,
+                    }
+                };
+                round_pushes.push((
+                    k,
+                    Push {
+                        node: seed.node,
+                        vector,
+                    },
+                ));
+            }
+        }
+        let budget = options.max_evaluations.saturating_sub(evaluations);
+        let candidates: Vec<(usize, Push)> = {
+            use rayon::prelude::*;
+            round_pushes
+                .into_par_iter()
+                .filter(|(_, p)| feasible(p))
+                .collect::<Vec<_>>()
+                .into_iter()
+                .take(budget)
+                .collect()
+        };
+        if candidates.is_empty() {
+            break;
+        }
+        let pushes: Vec<Push> = candidates.iter().map(|c| c.1).collect();
+        let predicted = predictor.final_positions(tree, &pushes)?;
+        evaluations += pushes.len();
+        let mut by_seed: Vec<Vec<Scored>> = vec![Vec::new(); seeds.len()];
+        for ((k, push), positions) in candidates.into_iter().zip(predicted) {
+            if let Some(positions) = positions {
+                let s = Scored {
+                    push,
+                    predicted_error: max_node_error(&positions, targets),
+                };
+                by_seed[k].push(s);
+                scored.push(s);
+            }
+        }
+        for (k, mut round_scores) in by_seed.into_iter().enumerate() {
+            if round_scores.is_empty() {
+                continue;
+            }
+            round_scores.sort_by(|a, b| a.predicted_error.total_cmp(&b.predicted_error));
+            let elite = &round_scores[..options.elite.min(round_scores.len())];
+            let mean =
+                elite.iter().map(|s| s.push.vector).sum::<Vector3<f64>>() / elite.len() as f64;
+            let spread = (elite
+                .iter()
+                .map(|s| (s.push.vector - mean).norm_squared())
+                .sum::<f64>()
+                / (3.0 * elite.len() as f64))
+                .sqrt();
+            state[k] = (mean, spread.max(0.005));
+        }
+        if evaluations >= options.max_evaluations {
+            break;
+        }
+    }
+    scored.sort_by(|a, b| a.predicted_error.total_cmp(&b.predicted_error));
+    Ok((scored, evaluations))
+}

@@ -1,0 +1,243 @@
+//! The planning layer on random trees: every returned trajectory is within
+//! the joint limits and collision-free, its push is a straight line of
+//! |T| plus the approach margin at constant tool orientation, for every
+//! strategy, both stances, and with obstacles.
+
+use std::path::Path;
+use std::time::Duration;
+
+use nalgebra::{Point3, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use treemanip::infer::models::ModelSet;
+use treemanip::planner::predict::max_node_error;
+use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
+use treemanip::robot::Ur5;
+use treemanip::robot::collision::{Allowed, CollisionModel, Hit, Obstacle, TreeObstacles};
+use treemanip::robot::dh::JOINT_LIMITS;
+use treemanip::robot::plan::{APPROACH_OFFSET, Outcome};
+use treemanip::sim::sampling::PushDistribution;
+use treemanip::sim::{Push, SimConfig, simulate};
+use treemanip::tree::{ScaParams, Tree, generate};
+
+fn models() -> ModelSet {
+    ModelSet::load_dir(Path::new("models"), None, 1, false).expect("the committed models load")
+}
+
+/// A random tree and the target made by a random paper-style push.
+fn episode(n: usize, seed: u64) -> (Tree, Vec<Point3<f64>>) {
+    let tree = generate(n, seed, &ScaParams::default()).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    loop {
+        let push = PushDistribution::default().sample(&tree, &mut rng);
+        if let Ok(o) = simulate(&tree, &push, &SimConfig::default()) {
+            return (tree, o.final_positions);
+        }
+    }
+}
+
+/// Checks everything a returned plan promises.
+fn check_plan(plan: &Plan, query: &Query) {
+    let Some(p) = &plan.plan else { return };
+    let tree = &query.tree;
+    for point in &p.trajectory {
+        for (i, q) in point.q.iter().enumerate() {
+            let (lo, hi) = JOINT_LIMITS[i];
+            assert!(
+                *q >= lo - 1e-9 && *q <= hi + 1e-9,
+                "joint {i} at {q} outside its limits"
+            );
+        }
+    }
+    assert!(
+        p.trajectory.windows(2).all(|w| w[1].t > w[0].t),
+        "time increases"
+    );
+    assert_eq!(
+        p.trajectory[0].q, plan.start,
+        "the trajectory begins at the start"
+    );
+    let arm = CollisionModel::new(Ur5::default().with_base(plan.base.isometry()));
+    let rest = TreeObstacles::new(tree).with_obstacles(&query.obstacles);
+    let near = Allowed {
+        gripper_branches: std::iter::once(p.node)
+            .chain(tree.children(p.node).iter().copied())
+            .collect(),
+    };
+    for point in &p.trajectory[..=p.push_start_index] {
+        assert_eq!(arm.check(&point.q, &rest, &near), None, "approach collides");
+    }
+    // The push: constant orientation, a straight line along T of length
+    // |T| + the approach margin.
+    let first = arm.robot.tool_pose(&p.trajectory[p.push_start_index].q);
+    let last = arm.robot.tool_pose(&p.trajectory.last().unwrap().q);
+    let travel = last.translation.vector - first.translation.vector;
+    assert!((travel.norm() - (p.push.norm() + APPROACH_OFFSET)).abs() < 1e-6);
+    assert!((travel.normalize() - p.push.normalize()).norm() < 1e-6);
+    for point in &p.trajectory[p.push_start_index..] {
+        let pose = arm.robot.tool_pose(&point.q);
+        assert!(
+            pose.rotation.angle_to(&first.rotation) < 1e-6,
+            "tool turns during the push"
+        );
+        let offset = pose.translation.vector - first.translation.vector;
+        let across = offset - travel.normalize() * offset.dot(&travel.normalize());
+        assert!(
+            across.norm() < 1e-6,
+            "push leaves its line by {}",
+            across.norm()
+        );
+        // The arm (not the gripper) never touches the tree or an obstacle.
+        if let Some(hit) = arm.check(
+            &point.q,
+            &rest,
+            &Allowed {
+                gripper_branches: tree.subtree(p.node),
+            },
+        ) {
+            assert!(
+                matches!(hit, Hit::Branch { .. }),
+                "push hits something fixed: {hit:?}"
+            );
+        }
+    }
+}
+
+fn query(tree: &Tree, targets: &[Point3<f64>], strategy: Strategy, region: bool) -> Query {
+    let mut q = Query::new(tree.clone(), targets.to_vec());
+    q.strategy = strategy;
+    q.budget = Duration::from_secs(3);
+    if region {
+        q.stance = Stance::Region(treemanip::eval::plan::evaluation_region());
+    }
+    q
+}
+
+#[test]
+fn every_strategy_and_stance_returns_valid_plans_that_help() {
+    let set = models();
+    let (policy, forward) = (
+        set.get("policy_gnn").unwrap(),
+        set.get("forward_gnn").unwrap(),
+    );
+    let planner = Planner::default();
+    let mut planned = 0;
+    let mut helped = 0;
+    for (n, seed) in [(10usize, 3u64), (14, 5), (12, 11)] {
+        let (tree, targets) = episode(n, seed);
+        for strategy in [Strategy::Paper, Strategy::Model, Strategy::Physics] {
+            for region in [false, true] {
+                let q = query(&tree, &targets, strategy, region);
+                let plan = planner.plan(&q, policy, Some(forward)).unwrap();
+                check_plan(&plan, &q);
+                assert_eq!(plan.strategy, strategy);
+                if let Some(p) = &plan.plan {
+                    planned += 1;
+                    let push = Push {
+                        node: p.node,
+                        vector: p.push,
+                    };
+                    let after = simulate(&tree, &push, &SimConfig::default())
+                        .map(|o| max_node_error(&o.final_positions, &targets))
+                        .unwrap_or(plan.no_action_error);
+                    if after < plan.no_action_error {
+                        helped += 1;
+                    }
+                    if strategy != Strategy::Paper {
+                        let predicted = plan.predicted_error.expect("searched plans predict");
+                        assert!(predicted < plan.no_action_error);
+                    }
+                } else {
+                    assert!(plan.attempts.iter().all(|a| a.outcome != Outcome::Planned));
+                }
+            }
+        }
+    }
+    // 18 plans asked for: most find a push, and most of those help.
+    assert!(planned >= 12, "only {planned} of 18 planned");
+    assert!(
+        helped * 10 >= planned * 8,
+        "{helped} of {planned} plans helped"
+    );
+}
+
+#[test]
+fn physics_search_is_no_worse_than_the_papers_pick_with_a_base_region() {
+    let set = models();
+    let (policy, forward) = (
+        set.get("policy_gnn").unwrap(),
+        set.get("forward_gnn").unwrap(),
+    );
+    let planner = Planner::default();
+    let (tree, targets) = episode(12, 21);
+    let error = |strategy| {
+        let plan = planner
+            .plan(
+                &query(&tree, &targets, strategy, true),
+                policy,
+                Some(forward),
+            )
+            .unwrap();
+        plan.plan.map_or(plan.no_action_error, |p| {
+            let push = Push {
+                node: p.node,
+                vector: p.push,
+            };
+            simulate(&tree, &push, &SimConfig::default()).map_or(plan.no_action_error, |o| {
+                max_node_error(&o.final_positions, &targets)
+            })
+        })
+    };
+    let (physics, paper) = (error(Strategy::Physics), error(Strategy::Paper));
+    assert!(
+        physics <= paper + 1e-3,
+        "physics {physics} vs paper {paper}"
+    );
+}
+
+#[test]
+fn obstacles_are_respected_and_named() {
+    let set = models();
+    let (policy, forward) = (
+        set.get("policy_gnn").unwrap(),
+        set.get("forward_gnn").unwrap(),
+    );
+    let planner = Planner::default();
+    let (tree, targets) = episode(10, 3);
+    let mut q = query(&tree, &targets, Strategy::Physics, false);
+    let plan = planner.plan(&q, policy, Some(forward)).unwrap();
+    let p = plan.plan.as_ref().expect("the open scene plans");
+    // A post through where the wrist passed halfway along the approach.
+    let arm = CollisionModel::new(Ur5::default().with_base(plan.base.isometry()));
+    let mid = arm
+        .robot
+        .tool_pose(&p.trajectory[p.push_start_index / 2].q)
+        .translation
+        .vector;
+    let post = Obstacle::Capsule {
+        a: Point3::new(mid.x, mid.y, 0.0),
+        b: Point3::new(mid.x, mid.y, mid.z + 0.3),
+        radius: 0.05,
+    };
+    q.obstacles = vec![post.clone()];
+    let around = planner.plan(&q, policy, Some(forward)).unwrap();
+    check_plan(&around, &q);
+    // A wall over the whole workspace makes the start collide, by name.
+    let wall = Obstacle::Box {
+        centre: Point3::new(-0.5, 0.0, 0.5),
+        half_extents: Vector3::new(0.3, 0.3, 0.3),
+        yaw: 0.3,
+    };
+    let walled_in = TreeObstacles::new(&tree).with_obstacles(&[post, wall.clone()]);
+    let hit = CollisionModel::new(Ur5::default()).check(
+        &treemanip::robot::ur5::HOME,
+        &walled_in,
+        &Allowed::default(),
+    );
+    assert!(
+        matches!(hit, Some(Hit::Obstacle { index: 1, .. })),
+        "{hit:?}"
+    );
+    q.obstacles = vec![wall];
+    assert!(planner.plan(&q, policy, Some(forward)).is_err());
+}
