@@ -1,11 +1,14 @@
-//! Training throughput (burn, Flex backend) and inference latency (ONNX
-//! through ort: tract, or native ONNX Runtime when `ORT_DYLIB_PATH` is set).
+//! Training throughput (burn, Flex backend) and inference latency of the
+//! committed `models/*.onnx` through ort, one graph per call, on every
+//! backend: the embedded tract and native ONNX Runtime (its library from
+//! `ORT_DYLIB_PATH`, else `scripts/fetch-onnxruntime`). A process runs on
+//! one backend only, so the bench runs itself once per backend and prints
+//! one table with the ratio.
 //!
-//!     cargo bench --bench learn                      # tract
-//!     ORT_DYLIB_PATH=$(scripts/fetch-onnxruntime) cargo bench --bench learn
+//!     cargo bench --bench learn                  # training and inference
+//!     cargo bench --bench learn -- inference     # inference only
 //!
-//! Inference runs the committed `models/*.onnx` single-threaded, one graph
-//! per call. Prints numbers; asserts nothing.
+//! Prints numbers; asserts nothing.
 
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -22,6 +25,11 @@ use treemanip::nn::pointnet::{PointNetConfig, PointNetWeights, position_stats};
 use treemanip::nn::train::data::Targets;
 use treemanip::nn::train::time_steps;
 use treemanip::tree::{ScaParams, Tree, generate};
+
+#[allow(dead_code)] // the learn bench uses the peak only
+#[path = "common/peak.rs"]
+mod peak;
+use peak::gemm_peak;
 
 fn graphs(task: Task, tree: &Tree, count: usize, rng: &mut ChaCha8Rng) -> Vec<GraphInput> {
     (0..count)
@@ -61,23 +69,6 @@ fn paper_model(task: Task, arch: Arch, gs: &[GraphInput]) -> ModelWeights {
             1,
         )),
     }
-}
-
-/// The f32 GEMM peak of burn's Flex backend on this machine: a 1024³
-/// matmul on all cores, best of several runs (GFLOP/s).
-fn gemm_peak() -> f64 {
-    use burn::tensor::{Device, Distribution, Tensor};
-    let device = Device::flex();
-    let a = Tensor::<2>::random([1024, 1024], Distribution::Default, &device);
-    let b = Tensor::<2>::random([1024, 1024], Distribution::Default, &device);
-    let mut best = f64::INFINITY;
-    for _ in 0..8 {
-        let t = Instant::now();
-        let c = a.clone().matmul(b.clone());
-        std::hint::black_box(c.into_data());
-        best = best.min(t.elapsed().as_secs_f64());
-    }
-    2.0 * 1024f64.powi(3) / best / 1e9
 }
 
 fn training() {
@@ -132,25 +123,28 @@ fn training() {
     }
 }
 
-fn inference() {
-    let library = std::env::var_os("ORT_DYLIB_PATH").map(std::path::PathBuf::from);
+const MODELS: [&str; 4] = [
+    "forward_gnn",
+    "policy_gnn",
+    "forward_pointnet",
+    "policy_pointnet",
+];
+const SIZES: [usize; 3] = [10, 15, 30];
+
+/// Child process: p50 latency (ms) of every model and size on the backend
+/// this process was started for, one `model n p50 p95` line each.
+fn inference_child(library: Option<std::path::PathBuf>) {
     let backend = init_backend(library.as_deref()).unwrap();
-    println!("inference latency, backend {backend:?} (one graph per call)");
+    eprintln!("child backend: {backend:?}");
     let mut rng = ChaCha8Rng::seed_from_u64(4);
-    for stem in [
-        "forward_gnn",
-        "policy_gnn",
-        "forward_pointnet",
-        "policy_pointnet",
-    ] {
+    for stem in MODELS {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("models")
             .join(format!("{stem}.onnx"));
         let Ok(mut model) = OnnxModel::load(&path) else {
-            println!("  {stem}: not found, skipped");
             continue;
         };
-        for n in [10usize, 15, 30] {
+        for n in SIZES {
             let tree = generate(n, 6, &ScaParams::default()).unwrap();
             let b = batch(&graphs(model.task(), &tree, 1, &mut rng)).unwrap();
             model.run(&b).unwrap();
@@ -163,17 +157,76 @@ fn inference() {
             }
             times.sort_by(f64::total_cmp);
             println!(
-                "  {stem:<17} N={n:<3} p50 {:>6.2} ms  p95 {:>6.2} ms  ({} runs)",
+                "{stem} {n} {} {}",
                 times[times.len() / 2],
-                times[times.len() * 95 / 100],
-                times.len()
+                times[times.len() * 95 / 100]
             );
         }
     }
 }
 
+/// ONNX Runtime's library: `ORT_DYLIB_PATH`, else fetched from PyPI.
+fn onnxruntime_library() -> Option<String> {
+    if let Ok(path) = std::env::var("ORT_DYLIB_PATH") {
+        return Some(path);
+    }
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/fetch-onnxruntime");
+    let out = std::process::Command::new(script).output().ok()?;
+    out.status
+        .success()
+        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_owned())
+}
+
+fn inference() {
+    let exe = std::env::current_exe().unwrap();
+    let run = |library: Option<&str>| -> std::collections::BTreeMap<(String, usize), (f64, f64)> {
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.arg("inference-child").env_remove("ORT_DYLIB_PATH");
+        if let Some(l) = library {
+            cmd.env("ORT_DYLIB_PATH", l);
+        }
+        let out = cmd.output().expect("the bench runs itself");
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .filter_map(|l| {
+                let f: Vec<&str> = l.split_whitespace().collect();
+                Some((
+                    (f.first()?.to_string(), f.get(1)?.parse().ok()?),
+                    (f.get(2)?.parse().ok()?, f.get(3)?.parse().ok()?),
+                ))
+            })
+            .collect()
+    };
+    let tract = run(None);
+    let library = onnxruntime_library();
+    let native = library.as_deref().map(|l| run(Some(l))).unwrap_or_default();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    println!(
+        "inference latency, batch 1, each backend in its own process ({threads} cores; tract with its multithreaded executor, ONNX Runtime {}):",
+        library.as_deref().unwrap_or("not available")
+    );
+    println!(
+        "  {:<17} {:>4} {:>12} {:>12} {:>16} {:>16} {:>8}",
+        "model", "N", "tract p50", "tract p95", "onnxruntime p50", "onnxruntime p95", "ratio"
+    );
+    for ((stem, n), (t50, t95)) in &tract {
+        let (o50, o95) = native
+            .get(&(stem.clone(), *n))
+            .copied()
+            .unwrap_or((f64::NAN, f64::NAN));
+        println!(
+            "  {stem:<17} {n:>4} {t50:>9.2} ms {t95:>9.2} ms {o50:>13.2} ms {o95:>13.2} ms {:>7.2}x",
+            t50 / o50
+        );
+    }
+}
+
 fn main() {
     let which = std::env::args().nth(1).unwrap_or_default();
+    if which == "inference-child" {
+        inference_child(std::env::var_os("ORT_DYLIB_PATH").map(std::path::PathBuf::from));
+        return;
+    }
     if which != "inference" {
         training();
     }

@@ -10,7 +10,7 @@
 //! | 415 | `unsupported_media_type` | not `application/json` |
 //! | 422 | `invalid_tree`, `invalid_argument`, `push_infeasible`, `out_of_domain` | the request is well formed but not usable (`out_of_domain`: outside what the model was trained on) |
 //! | 503 | `not_ready`, `overloaded` | models not loaded / too much work queued |
-//! | 504 | `timeout` | the request's time budget ran out |
+//! | 504 | `timeout` | the request's time budget (or its `timeout_ms`) ran out |
 //! | 500 | `internal` | a bug: never caused by what a client sent |
 
 use axum::http::StatusCode;
@@ -83,6 +83,11 @@ impl ApiError {
             "timeout",
             format!("the request did not finish within its {seconds:.1} s budget"),
         )
+    }
+
+    /// A request whose deadline passed while its model job was queued.
+    pub fn deadline(message: impl Into<String>) -> Self {
+        Self::new(StatusCode::GATEWAY_TIMEOUT, "timeout", message)
     }
 
     pub fn internal(message: impl Into<String>) -> Self {

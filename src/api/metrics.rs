@@ -1,5 +1,7 @@
 //! Prometheus metrics: per-route request counts by status and latency
-//! histograms, compute time, rejections. Rendered at `GET /metrics`.
+//! histograms, compute time, rejections; per model (from the batcher,
+//! `infer::batcher`): queue time, compute time and batch size histograms
+//! and a queue-depth gauge. Rendered at `GET /metrics`.
 
 use std::sync::OnceLock;
 use std::time::Instant;
@@ -22,6 +24,11 @@ pub fn recorder() -> PrometheusHandle {
         .get_or_init(|| {
             PrometheusBuilder::new()
                 .set_buckets_for_metric(Matcher::Suffix("seconds".to_owned()), &BUCKETS)
+                .expect("non-empty buckets")
+                .set_buckets_for_metric(
+                    Matcher::Full("treemanip_batch_size".to_owned()),
+                    &[1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0],
+                )
                 .expect("non-empty buckets")
                 .install_recorder()
                 .expect("no other metrics recorder is installed")

@@ -27,12 +27,15 @@ use axum::http::header;
 use axum::response::IntoResponse;
 use axum::routing::{get, post};
 use serde_json::json;
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use tokio::sync::Semaphore;
 
 use error::ApiError;
 
 use crate::graph::Task;
 use crate::infer::Backend;
+use crate::infer::batcher::JobControl;
 use crate::infer::models::{ModelSet, ServedModel};
 
 /// A served model that can move into a blocking job.
@@ -67,6 +70,8 @@ pub struct Limits {
     pub max_actions: usize,
     /// Largest planning budget a `/v1/plan` call may ask for.
     pub max_plan_budget: Duration,
+    /// Push predictions one `/v1/plan` call may ask for.
+    pub max_plan_evaluations: usize,
     /// Serve `POST /debug/panic` and `/debug/panic-worker` (tests only).
     pub fault_injection: bool,
 }
@@ -77,10 +82,13 @@ impl Default for Limits {
         Self {
             max_nodes: crate::tree::MAX_NODES,
             max_body_bytes: 1 << 20,
-            max_in_flight: 4 * cores,
+            // Queued model jobs cost a waiting thread, not CPU: admit enough
+            // that dynamic batching has work (16 per core) and shed the rest.
+            max_in_flight: 16 * cores,
             request_timeout: Duration::from_secs(10),
             max_actions: 256,
             max_plan_budget: Duration::from_secs(5),
+            max_plan_evaluations: 512,
             fault_injection: false,
         }
     }
@@ -96,6 +104,8 @@ pub struct AppState {
     metrics: metrics_exporter_prometheus::PrometheusHandle,
     /// Graceful shutdown's state ([`shutdown`]).
     pub drain: Arc<shutdown::Drain>,
+    /// The arm's collision geometry, built once.
+    pub planner: Arc<crate::planner::Planner>,
 }
 
 impl AppState {
@@ -106,6 +116,7 @@ impl AppState {
             models: None,
             metrics: metrics::recorder(),
             drain: Arc::default(),
+            planner: Arc::default(),
         }
     }
 
@@ -153,24 +164,59 @@ impl AppState {
         T: Send + 'static,
         F: FnOnce() -> Result<T, ApiError> + Send + 'static,
     {
+        self.run_model_work(route, None, move |_| work()).await
+    }
+
+    /// [`Self::run_blocking`] for work that queues model jobs: the work gets
+    /// a [`JobControl`] with the request's deadline (`timeout`, capped by
+    /// the server's limit) and a flag set when the client goes away, so
+    /// the model's queue drops jobs nobody waits for.
+    pub async fn run_model_work<T, F>(
+        &self,
+        route: &'static str,
+        timeout: Option<Duration>,
+        work: F,
+    ) -> Result<T, ApiError>
+    where
+        T: Send + 'static,
+        F: FnOnce(JobControl) -> Result<T, ApiError> + Send + 'static,
+    {
         let Ok(permit) = self.admission.clone().try_acquire_owned() else {
             ::metrics::counter!("treemanip_rejected_total", "route" => route, "reason" => "overloaded").increment(1);
             return Err(ApiError::overloaded());
         };
+        let budget = timeout.map_or(self.limits.request_timeout, |t| {
+            t.min(self.limits.request_timeout)
+        });
         let started = std::time::Instant::now();
+        let cancel = CancelOnDrop(Arc::new(AtomicBool::new(false)));
+        let control = JobControl {
+            deadline: Some(started + budget),
+            cancelled: Some(cancel.0.clone()),
+        };
         let job = tokio::task::spawn_blocking(move || {
             let _permit = permit;
-            work()
+            work(control)
         });
-        let budget = self.limits.request_timeout;
         let result = match tokio::time::timeout(budget, job).await {
             Err(_) => Err(ApiError::timeout(budget.as_secs_f64())),
             Ok(Err(join)) => Err(ApiError::internal(format!("the worker failed: {join}"))),
             Ok(Ok(result)) => result,
         };
+        drop(cancel);
         ::metrics::histogram!("treemanip_compute_seconds", "route" => route)
             .record(started.elapsed().as_secs_f64());
         result
+    }
+}
+
+/// Marks a request's model jobs as unwanted when its handler is dropped (the
+/// client closed the connection) or finishes.
+struct CancelOnDrop(Arc<AtomicBool>);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::SeqCst);
     }
 }
 

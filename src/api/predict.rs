@@ -54,6 +54,24 @@ pub struct ForwardRequest {
     /// warnings) instead of refusing them with 422 `out_of_domain`.
     #[serde(default)]
     pub allow_out_of_domain: bool,
+    /// Deadline (ms, capped by the server's request timeout): a request
+    /// still queued for the model when it passes is answered 504.
+    #[serde(default)]
+    pub timeout_ms: Option<f64>,
+}
+
+/// A request's `timeout_ms`, checked.
+pub fn request_timeout(value: Option<f64>) -> Result<Option<std::time::Duration>, ApiError> {
+    match value {
+        None => Ok(None),
+        Some(ms) if ms.is_finite() && ms > 0.0 => {
+            Ok(Some(std::time::Duration::from_secs_f64(ms.min(1e9) / 1e3)))
+        }
+        Some(_) => Err(
+            ApiError::invalid_argument("`timeout_ms` must be a positive number")
+                .with_details(json!({ "field": "timeout_ms" })),
+        ),
+    }
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -197,8 +215,14 @@ fn actions(
     }
 }
 
-fn inference_error(e: crate::infer::InferError) -> ApiError {
-    ApiError::internal(format!("inference failed: {e}"))
+/// The API error for a failed model job.
+pub fn inference_error(e: crate::infer::InferError) -> ApiError {
+    use crate::infer::InferError;
+    match e {
+        // Nobody reads a cancelled job's answer: its client has gone.
+        InferError::DeadlineExceeded | InferError::Cancelled => ApiError::deadline(e.to_string()),
+        _ => ApiError::internal(format!("inference failed: {e}")),
+    }
 }
 
 pub async fn forward(
@@ -213,11 +237,12 @@ pub async fn forward(
     ::metrics::histogram!("treemanip_actions_per_request", "route" => "/v1/forward")
         .record(actions.len() as f64);
     let info = ModelInfo::of(&model, &state);
+    let timeout = request_timeout(request.timeout_ms)?;
     let response = state
-        .run_blocking("/v1/forward", move || {
+        .run_model_work("/v1/forward", timeout, move |control| {
             let started = std::time::Instant::now();
-            let predicted =
-                predict_displacements(&model, &tree, &actions).map_err(inference_error)?;
+            let predicted = predict_displacements(&model, &tree, &actions, &control)
+                .map_err(inference_error)?;
             ::metrics::histogram!("treemanip_inference_seconds", "model" => model.name.clone())
                 .record(started.elapsed().as_secs_f64());
             let xyz = |v: Vector3<f64>| [v.x, v.y, v.z];
@@ -252,6 +277,9 @@ pub struct PolicyRequest {
     /// See [`ForwardRequest::allow_out_of_domain`].
     #[serde(default)]
     pub allow_out_of_domain: bool,
+    /// See [`ForwardRequest::timeout_ms`].
+    #[serde(default)]
+    pub timeout_ms: Option<f64>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -272,10 +300,12 @@ pub async fn policy(
     let targets = targets(&request.target_positions, &tree)?;
     let warnings = domain::check(&model, &tree, &[], request.allow_out_of_domain)?;
     let info = ModelInfo::of(&model, &state);
+    let timeout = request_timeout(request.timeout_ms)?;
     let response = state
-        .run_blocking("/v1/policy", move || {
+        .run_model_work("/v1/policy", timeout, move |control| {
             let started = std::time::Instant::now();
-            let candidates = rank_candidates(&model, &tree, &targets).map_err(inference_error)?;
+            let candidates =
+                rank_candidates(&model, &tree, &targets, &control).map_err(inference_error)?;
             ::metrics::histogram!("treemanip_inference_seconds", "model" => model.name.clone())
                 .record(started.elapsed().as_secs_f64());
             Ok(PolicyResponse {

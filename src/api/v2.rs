@@ -223,9 +223,10 @@ pub async fn infer(
     let model_name = m.name.clone();
     let (b, n) = (batch.batch, batch.n);
     let out = state
-        .run_blocking("/v2/models/infer", move || {
-            m.run(&batch)
-                .map_err(|e| ApiError::internal(format!("inference failed: {e}")))
+        .run_model_work("/v2/models/infer", None, move |control| {
+            m.batcher()
+                .run(batch, control)
+                .map_err(super::predict::inference_error)
         })
         .await?;
     let mut outputs = Vec::new();

@@ -23,7 +23,8 @@ struct Args {
     /// Largest request body (bytes).
     #[arg(long, env = "TREEMANIP_MAX_BODY_BYTES", default_value_t = 1 << 20)]
     max_body_bytes: usize,
-    /// CPU jobs admitted at once (running or queued); more are answered 503.
+    /// Requests admitted at once (running or queued; default 16 per core, so
+    /// that the model queues have work to batch); more are answered 503.
     #[arg(long, env = "TREEMANIP_MAX_IN_FLIGHT")]
     max_in_flight: Option<usize>,
     /// Time budget of one request (seconds); past it the answer is 504.
@@ -42,6 +43,16 @@ struct Args {
     /// Largest planning budget a /v1/plan call may ask for (milliseconds).
     #[arg(long, env = "TREEMANIP_MAX_PLAN_BUDGET_MS", default_value_t = 5000)]
     max_plan_budget_ms: u64,
+    /// Push predictions a /v1/plan call may ask for (`max_evaluations`).
+    #[arg(long, env = "TREEMANIP_MAX_PLAN_EVALUATIONS", default_value_t = 512)]
+    max_plan_evaluations: usize,
+    /// Graphs one model batch may hold: queued requests of the same tree size
+    /// are run together up to this many.
+    #[arg(long, env = "TREEMANIP_MAX_BATCH", default_value_t = 64)]
+    max_batch: usize,
+    /// How long (µs) a queued request may wait for others to join its batch.
+    #[arg(long, env = "TREEMANIP_MAX_QUEUE_DELAY_US", default_value_t = 200)]
+    max_queue_delay_us: u64,
     /// Serve the models that load and report the others as not ready,
     /// instead of refusing to start when a model file is missing, truncated
     /// or of another feature layout.
@@ -63,24 +74,15 @@ enum LogFormat {
     Json,
 }
 
-/// Large buffers (a 64-action batch at N = 30 holds tens of MB of edge
-/// embeddings) always get their own mapping, returned to the system when
-/// freed. glibc otherwise raises its mmap threshold after the first such
-/// free and serves later ones from the heap, where they fragment: a 10-minute
-/// soak grew the resident set by 15–20 % (and 488 → 587 MiB in 6 min); with
-/// a fixed 1 MiB threshold it stays flat (179 → 134 MiB).
-fn fix_malloc_thresholds() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt only sets allocator parameters; it is called before
-    // any other thread exists.
-    unsafe {
-        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 20);
-        libc::mallopt(libc::M_TRIM_THRESHOLD, 1 << 20);
-    }
-}
+/// mimalloc instead of glibc malloc. Large buffers (a 64-action batch at
+/// N = 30 holds tens of MB of edge embeddings) come and go on every batched
+/// inference: glibc either lets them fragment its heap (a 10-minute soak grew
+/// the resident set 15-20 %) or, with a fixed mmap threshold, maps and zeroes
+/// each one afresh; mimalloc reuses freed pages per thread.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() -> anyhow::Result<()> {
-    fix_malloc_thresholds();
     let args = Args::parse();
     // The blocking pool runs the CPU work, at most --max-in-flight jobs at
     // once (the admission limit), so it needs no more threads than that
@@ -119,12 +121,21 @@ async fn serve(args: Args) -> anyhow::Result<()> {
     if args.max_actions == 0 {
         anyhow::bail!("--max-actions must be at least 1");
     }
+    if args.max_batch == 0 {
+        anyhow::bail!("--max-batch must be at least 1");
+    }
+    // One session (and batching worker) per core, each on one thread.
     let sessions = std::thread::available_parallelism().map_or(2, |n| n.get());
-    let models = ModelSet::load_dir(
+    let batching = treemanip::infer::batcher::BatchLimits {
+        max_batch: args.max_batch,
+        max_delay: std::time::Duration::from_micros(args.max_queue_delay_us),
+    };
+    let models = ModelSet::load_dir_with(
         &args.models_dir,
         args.ort_dylib.as_deref(),
         sessions,
         args.skip_broken_models,
+        batching,
     )
     .map_err(|e| {
         anyhow::anyhow!(
@@ -157,6 +168,7 @@ async fn serve(args: Args) -> anyhow::Result<()> {
         request_timeout: std::time::Duration::from_secs_f64(args.request_timeout),
         max_actions: args.max_actions,
         max_plan_budget: std::time::Duration::from_millis(args.max_plan_budget_ms),
+        max_plan_evaluations: args.max_plan_evaluations.max(1),
         fault_injection: args.fault_injection,
     };
     let grace = limits.request_timeout + std::time::Duration::from_secs(5);

@@ -4,11 +4,11 @@
 //! these pushes; which node to push, and how).
 
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 
 use nalgebra::{Point3, Vector3};
 use serde::Serialize;
 
+use super::batcher::{BatchLimits, Batcher, JobControl};
 use super::{Backend, InferError, OnnxModel, init_backend, read_metadata};
 use crate::graph::{FEATURE_LAYOUT_VERSION, Task, batch, encode_forward, encode_policy};
 use crate::nn::domain::Domain;
@@ -18,7 +18,7 @@ use crate::tree::Tree;
 /// Graphs per inference call; larger requests are split.
 pub const MAX_BATCH: usize = 64;
 
-/// One model file and its sessions.
+/// One model file and its sessions, behind a dynamic batcher.
 pub struct ServedModel {
     /// File stem: `forward_gnn`, `policy_pointnet`, ...
     pub name: String,
@@ -28,11 +28,21 @@ pub struct ServedModel {
     /// Trees and pushes the model answers for (metadata `domain`); `None`
     /// for models exported before domains were recorded.
     pub domain: Option<Domain>,
-    sessions: Vec<Mutex<OnnxModel>>,
+    batcher: Batcher,
 }
 
 impl ServedModel {
     pub fn load(path: &Path, sessions: usize) -> Result<Self, InferError> {
+        Self::load_with(path, sessions, BatchLimits::default())
+    }
+
+    /// Loads a model with `sessions` sessions (one worker thread each)
+    /// batching requests within `limits`.
+    pub fn load_with(
+        path: &Path,
+        sessions: usize,
+        limits: BatchLimits,
+    ) -> Result<Self, InferError> {
         let bytes = std::fs::read(path)
             .map_err(|e| InferError::Load(format!("reading {}: {e}", path.display())))?;
         let metadata = read_metadata(&bytes)
@@ -48,9 +58,9 @@ impl ServedModel {
             )));
         }
         let sessions = (0..sessions.max(1))
-            .map(|_| OnnxModel::with_threads(&bytes, metadata.clone(), Some(1)).map(Mutex::new))
+            .map(|_| OnnxModel::with_threads(&bytes, metadata.clone(), Some(1)))
             .collect::<Result<Vec<_>, _>>()?;
-        let task = sessions[0].lock().expect("fresh lock").task();
+        let task = sessions[0].task();
         let domain = match metadata.iter().find(|(k, _)| k == "domain") {
             None => None,
             Some((_, text)) => {
@@ -64,16 +74,17 @@ impl ServedModel {
                 )
             }
         };
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
         Ok(Self {
             domain,
-            name: path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default(),
+            batcher: Batcher::start(&name, sessions, limits),
+            name,
             task,
             file: path.to_path_buf(),
             metadata,
-            sessions,
         })
     }
 
@@ -84,17 +95,16 @@ impl ServedModel {
             .map(|(_, v)| v.as_str())
     }
 
-    /// Runs a batch on a free session (or waits for the first one).
+    /// Runs a batch through the model's queue (batched with other callers'
+    /// jobs of the same size) and waits for its rows.
     pub fn run(&self, b: &crate::graph::Batch) -> Result<GnnOutput, InferError> {
-        for s in &self.sessions {
-            if let Ok(mut session) = s.try_lock() {
-                return session.run(b);
-            }
-        }
-        let mut session = self.sessions[0]
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
-        session.run(b)
+        self.batcher.run(b.clone(), JobControl::default())
+    }
+
+    /// The model's queue, for callers that submit several jobs at once or
+    /// attach a deadline.
+    pub fn batcher(&self) -> &Batcher {
+        &self.batcher
     }
 }
 
@@ -118,6 +128,17 @@ impl ModelSet {
         sessions: usize,
         skip_broken: bool,
     ) -> Result<Self, InferError> {
+        Self::load_dir_with(dir, library, sessions, skip_broken, BatchLimits::default())
+    }
+
+    /// [`Self::load_dir`] with the batching limits of every model.
+    pub fn load_dir_with(
+        dir: &Path,
+        library: Option<&Path>,
+        sessions: usize,
+        skip_broken: bool,
+        limits: BatchLimits,
+    ) -> Result<Self, InferError> {
         let backend = init_backend(library)?;
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
             .map_err(|e| InferError::Load(format!("reading {}: {e}", dir.display())))?
@@ -128,7 +149,7 @@ impl ModelSet {
         let mut models = Vec::new();
         let mut broken = Vec::new();
         for path in &files {
-            match ServedModel::load(path, sessions) {
+            match ServedModel::load_with(path, sessions, limits) {
                 Ok(model) => models.push(model),
                 Err(e) if skip_broken => {
                     let name = path
@@ -159,13 +180,16 @@ impl ModelSet {
 }
 
 /// Predicted displacements Δp (m) per node, for each (contact node, push).
+/// Chunks of [`MAX_BATCH`] actions are queued together, so the model's
+/// sessions run them in parallel.
 pub fn predict_displacements(
     model: &ServedModel,
     tree: &Tree,
     actions: &[(usize, Vector3<f64>)],
+    control: &JobControl,
 ) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
     let n = tree.len();
-    let mut out = Vec::with_capacity(actions.len());
+    let mut pending = Vec::new();
     for chunk in actions.chunks(MAX_BATCH) {
         let graphs = chunk
             .iter()
@@ -173,8 +197,12 @@ pub fn predict_displacements(
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| InferError::Run(e.to_string()))?;
         let b = batch(&graphs).map_err(|e| InferError::Run(e.to_string()))?;
-        let y = model.run(&b)?;
-        for k in 0..chunk.len() {
+        pending.push((chunk.len(), model.batcher.submit(b, control.clone())));
+    }
+    let mut out = Vec::with_capacity(actions.len());
+    for (count, answer) in pending {
+        let y = answer.wait()?;
+        for k in 0..count {
             out.push(
                 (0..n)
                     .map(|j| {
@@ -206,10 +234,11 @@ pub fn rank_candidates(
     model: &ServedModel,
     tree: &Tree,
     targets: &[Point3<f64>],
+    control: &JobControl,
 ) -> Result<Vec<Candidate>, InferError> {
     let g = encode_policy(tree, targets).map_err(|e| InferError::Run(e.to_string()))?;
     let b = batch(std::slice::from_ref(&g)).map_err(|e| InferError::Run(e.to_string()))?;
-    let y = model.run(&b)?;
+    let y = model.batcher.run(b, control.clone())?;
     let affordance = y
         .affordance
         .ok_or_else(|| InferError::Run(format!("{} is not a policy model", model.name)))?;

@@ -2,6 +2,7 @@
 //! ort instead of one per file), a module per area. Shared helpers, the
 //! server launcher and HTTP client among them, live in [`common`].
 
+mod batching;
 mod cli_trees;
 mod common;
 mod dataset;
@@ -10,6 +11,7 @@ mod graph_encoding;
 mod oip_v2;
 mod onnx_parity;
 mod openapi_spec;
+mod planner;
 mod readme_examples;
 mod robot_collision;
 mod robot_model;

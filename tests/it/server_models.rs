@@ -333,13 +333,18 @@ fn policy_ranks_every_pushable_node_and_plan_runs_algorithm_1() {
         }
         let k = answer["push_start_index"].as_u64().unwrap() as usize;
         assert!(k < trajectory.len());
-        // The planned candidate is the first one that did not fail.
-        let planned_rank = answer["rank"].as_u64().unwrap() as usize;
-        assert_eq!(attempts[planned_rank - 1]["outcome"], "planned");
+        // Exactly one push looked at was planned: the answer's.
+        let planned: Vec<&Value> = attempts
+            .iter()
+            .filter(|a| a["outcome"] == "planned")
+            .collect();
+        assert_eq!(planned.len(), 1, "{answer}");
+        assert_eq!(planned[0]["node"], answer["node"]);
+        assert_eq!(planned[0]["rank"], answer["rank"]);
+        assert_eq!(answer["strategy"], "model");
         assert!(
-            attempts[..planned_rank - 1]
-                .iter()
-                .all(|a| a["outcome"] != "planned")
+            answer["predicted_error"].as_f64().unwrap()
+                < answer["no_action_error"].as_f64().unwrap()
         );
     } else {
         assert_eq!(answer["status"], "no_plan");
@@ -358,6 +363,29 @@ fn policy_ranks_every_pushable_node_and_plan_runs_algorithm_1() {
         (bad("budget_ms", json!(-1)), "budget_ms"),
         (bad("robot", json!({"start": [0.0, 1.0]})), "robot.start"),
         (bad("robot", json!({"base": [9.0, 0.0, 0.0]})), "robot.base"),
+        (
+            bad(
+                "robot",
+                json!({"base": [-0.5, 0.0, 0.1], "base_region": {"min": [-1, -0.5, 0.1], "max": [0, 0.5, 1]}}),
+            ),
+            "robot.base_region",
+        ),
+        (
+            bad(
+                "robot",
+                json!({"base_region": {"min": [0, 0, 0.1], "max": [-1, 0.5, 1]}}),
+            ),
+            "robot.base_region",
+        ),
+        (bad("max_candidates", json!(99)), "max_candidates"),
+        (bad("max_evaluations", json!(100000)), "max_evaluations"),
+        (
+            bad(
+                "obstacles",
+                json!([{"kind": "capsule", "a": [0, 0, 0], "b": [0, 0, 1], "radius": -1}]),
+            ),
+            "obstacles.radius",
+        ),
     ] {
         let (status, answer) = rec.call(&server, "POST", "/v1/plan", &body);
         assert_eq!(
@@ -389,7 +417,62 @@ fn policy_ranks_every_pushable_node_and_plan_runs_algorithm_1() {
     );
     assert_eq!(status, 422, "{answer}");
     assert_eq!(answer["error"]["details"]["field"], "robot.start");
+    // Other strategies, with the base chosen in a region.
+    for strategy in ["paper", "physics"] {
+        let mut body = plan.clone();
+        body["strategy"] = json!(strategy);
+        body["robot"] = json!({"base_region": {"min": [-1.0, -0.5, 0.1], "max": [0.0, 0.5, 1.0]}});
+        let (status, answer) = rec.call(&server, "POST", "/v1/plan", &body);
+        assert_eq!(status, 200, "{answer}");
+        assert_eq!(answer["strategy"], strategy);
+        let base: Vec<f64> = answer["base"]["position"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let (lo, hi) = ([-1.0, -0.5, 0.1], [0.0, 0.5, 1.0]);
+        assert!(
+            (0..3).all(|k| base[k] >= lo[k] - 1e-9 && base[k] <= hi[k] + 1e-9),
+            "{answer}"
+        );
+    }
     let metrics = server.request("GET", "/metrics", "text/plain", b"").2;
     assert!(metrics.contains("treemanip_plans_total"), "{metrics}");
     rec.check();
+}
+
+#[test]
+fn a_request_past_its_timeout_is_answered_504_and_batching_is_measured() {
+    let server = start(&[]);
+    let tree = tree();
+    let body = json!({"tree": tree_value(&tree), "contact_node": 3, "push": [0.0, 0.06, 0.0], "timeout_ms": 0.001});
+    let (status, answer) = server.json("POST", "/v1/forward", &body);
+    assert_eq!(
+        (status, answer["error"]["code"].as_str()),
+        (504, Some("timeout")),
+        "{answer}"
+    );
+    let mut ok = body.clone();
+    ok["timeout_ms"] = json!(5000);
+    let (status, answer) = server.json("POST", "/v1/forward", &ok);
+    assert_eq!(status, 200, "{answer}");
+    let (status, _) = server.json("POST", "/v1/forward", &json!({"tree": tree_value(&tree), "contact_node": 3, "push": [0.0, 0.06, 0.0], "timeout_ms": -5}));
+    assert_eq!(status, 422);
+    let metrics = server.request("GET", "/metrics", "text/plain", b"").2;
+    for name in [
+        "treemanip_batch_size_bucket",
+        "treemanip_model_queue_seconds_bucket",
+        "treemanip_model_compute_seconds_bucket",
+        "treemanip_queue_depth",
+    ] {
+        assert!(
+            metrics.contains(&format!("{name}{{model=\"forward_gnn\"")),
+            "{name} missing:\n{metrics}"
+        );
+    }
+    assert!(
+        metrics.contains("# TYPE treemanip_queue_depth gauge"),
+        "{metrics}"
+    );
 }

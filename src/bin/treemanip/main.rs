@@ -11,6 +11,11 @@ mod trees;
 
 use clap::{Parser, Subcommand};
 
+/// mimalloc keeps freed pages for reuse: glibc malloc mmaps and zeroes every
+/// large tensor of a training step afresh, a fifth of the step's time.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 #[derive(Parser)]
 #[command(name = "treemanip", version, about = "Offline tools for learning robotic tree manipulation", long_about = None)]
 struct Cli {

@@ -1,0 +1,289 @@
+//! Dynamic batching across callers, one queue per model.
+//!
+//! Every inference of a served model (a `/v1/forward` request, a policy
+//! ranking, one round of the planner's push search) is a job in the model's
+//! queue. Each of the model's sessions has a worker thread that takes the
+//! oldest job, adds the other queued jobs with the same padded tree size up
+//! to `max_batch` graphs (waiting up to `max_delay` after the oldest job
+//! arrived for more to come), runs them as one batch, and answers each job
+//! with its own rows. Jobs whose caller has gone (a closed connection) or
+//! whose deadline has passed are answered without running. No job waits
+//! for a particular session, so a slow batch on one session never holds
+//! up the others.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use super::{InferError, OnnxModel};
+use crate::graph::Batch;
+use crate::nn::gnn::GnnOutput;
+
+/// How large a batch may grow and how long its first job may wait for it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BatchLimits {
+    /// Graphs in one batch (a larger job runs alone).
+    pub max_batch: usize,
+    /// Longest a job waits for others to join its batch.
+    pub max_delay: Duration,
+}
+
+impl Default for BatchLimits {
+    fn default() -> Self {
+        Self {
+            max_batch: 64,
+            max_delay: Duration::from_micros(200),
+        }
+    }
+}
+
+/// What a caller can attach to a job.
+#[derive(Debug, Clone, Default)]
+pub struct JobControl {
+    /// Answer [`InferError::DeadlineExceeded`] instead of running after this.
+    pub deadline: Option<Instant>,
+    /// Set when the caller no longer wants the answer.
+    pub cancelled: Option<Arc<AtomicBool>>,
+}
+
+struct Job {
+    batch: Batch,
+    control: JobControl,
+    enqueued: Instant,
+    reply: SyncSender<Result<GnnOutput, InferError>>,
+}
+
+#[derive(Default)]
+struct Queue {
+    jobs: Mutex<VecDeque<Job>>,
+    arrived: Condvar,
+    closing: AtomicBool,
+    /// Batches run and graphs in them, for tests and benches.
+    batches: AtomicUsize,
+    graphs: AtomicUsize,
+}
+
+/// A model's queue and its workers.
+pub struct Batcher {
+    name: String,
+    queue: Arc<Queue>,
+    workers: Vec<JoinHandle<()>>,
+}
+
+/// A job's answer, when it comes.
+pub struct Pending(Receiver<Result<GnnOutput, InferError>>);
+
+impl Pending {
+    pub fn wait(self) -> Result<GnnOutput, InferError> {
+        self.0
+            .recv()
+            .unwrap_or_else(|_| Err(InferError::Run("the model's worker stopped".into())))
+    }
+}
+
+impl Batcher {
+    /// Starts one worker per session.
+    pub fn start(name: &str, sessions: Vec<OnnxModel>, limits: BatchLimits) -> Self {
+        let queue = Arc::new(Queue::default());
+        let workers = sessions
+            .into_iter()
+            .enumerate()
+            .map(|(k, session)| {
+                let queue = queue.clone();
+                let name = name.to_owned();
+                std::thread::Builder::new()
+                    .name(format!("{name}-{k}"))
+                    .spawn(move || worker(&name, &queue, session, limits))
+                    .expect("a worker thread starts")
+            })
+            .collect();
+        Self {
+            name: name.to_owned(),
+            queue,
+            workers,
+        }
+    }
+
+    /// Queues a batch; the answer comes through [`Pending::wait`].
+    pub fn submit(&self, batch: Batch, control: JobControl) -> Pending {
+        let (reply, answer) = sync_channel(1);
+        let mut jobs = self.queue.jobs.lock().unwrap_or_else(|p| p.into_inner());
+        jobs.push_back(Job {
+            batch,
+            control,
+            enqueued: Instant::now(),
+            reply,
+        });
+        ::metrics::gauge!("treemanip_queue_depth", "model" => self.name.clone())
+            .set(jobs.len() as f64);
+        drop(jobs);
+        self.queue.arrived.notify_one();
+        Pending(answer)
+    }
+
+    /// Batches run so far and the graphs they held.
+    pub fn batches_run(&self) -> (usize, usize) {
+        (
+            self.queue.batches.load(Ordering::SeqCst),
+            self.queue.graphs.load(Ordering::SeqCst),
+        )
+    }
+
+    /// Runs a batch through the queue and waits for its answer.
+    pub fn run(&self, batch: Batch, control: JobControl) -> Result<GnnOutput, InferError> {
+        self.submit(batch, control).wait()
+    }
+}
+
+impl Drop for Batcher {
+    fn drop(&mut self) {
+        self.queue.closing.store(true, Ordering::SeqCst);
+        self.queue.arrived.notify_all();
+        for w in self.workers.drain(..) {
+            let _ = w.join();
+        }
+    }
+}
+
+/// Takes the next batch's jobs: the oldest job, and the queued jobs of the
+/// same task and padded size after it, up to `max_batch` graphs. `None`
+/// when the queue is closing.
+fn next_jobs(queue: &Queue, limits: BatchLimits) -> Option<Vec<Job>> {
+    let mut jobs = queue.jobs.lock().unwrap_or_else(|p| p.into_inner());
+    loop {
+        if queue.closing.load(Ordering::SeqCst) {
+            return None;
+        }
+        let Some(first) = jobs.front() else {
+            jobs = queue.arrived.wait(jobs).unwrap_or_else(|p| p.into_inner());
+            continue;
+        };
+        let (n, task, since) = (first.batch.n, first.batch.task, first.enqueued);
+        let fits = |j: &Job| j.batch.n == n && j.batch.task == task;
+        let graphs: usize = jobs.iter().filter(|j| fits(j)).map(|j| j.batch.batch).sum();
+        let waited = since.elapsed();
+        if graphs < limits.max_batch && waited < limits.max_delay {
+            jobs = queue
+                .arrived
+                .wait_timeout(jobs, limits.max_delay - waited)
+                .unwrap_or_else(|p| p.into_inner())
+                .0;
+            continue;
+        }
+        let mut taken = Vec::new();
+        let mut total = 0;
+        let mut k = 0;
+        while k < jobs.len() {
+            let size = jobs[k].batch.batch;
+            if fits(&jobs[k]) && (taken.is_empty() || total + size <= limits.max_batch) {
+                total += size;
+                taken.push(jobs.remove(k).expect("index in range"));
+            } else {
+                k += 1;
+            }
+        }
+        return Some(taken);
+    }
+}
+
+fn worker(name: &str, queue: &Queue, mut session: OnnxModel, limits: BatchLimits) {
+    while let Some(jobs) = next_jobs(queue, limits) {
+        let depth = queue.jobs.lock().map_or(0, |j| j.len());
+        ::metrics::gauge!("treemanip_queue_depth", "model" => name.to_owned()).set(depth as f64);
+        let now = Instant::now();
+        let mut live = Vec::new();
+        for job in jobs {
+            ::metrics::histogram!("treemanip_model_queue_seconds", "model" => name.to_owned())
+                .record(now.duration_since(job.enqueued).as_secs_f64());
+            let cancelled = job
+                .control
+                .cancelled
+                .as_ref()
+                .is_some_and(|c| c.load(Ordering::SeqCst));
+            if cancelled {
+                ::metrics::counter!("treemanip_jobs_dropped_total", "model" => name.to_owned(), "reason" => "cancelled").increment(1);
+                let _ = job.reply.send(Err(InferError::Cancelled));
+            } else if job.control.deadline.is_some_and(|d| now >= d) {
+                ::metrics::counter!("treemanip_jobs_dropped_total", "model" => name.to_owned(), "reason" => "deadline").increment(1);
+                let _ = job.reply.send(Err(InferError::DeadlineExceeded));
+            } else {
+                live.push(job);
+            }
+        }
+        if live.is_empty() {
+            continue;
+        }
+        let merged = concat(live.iter().map(|j| &j.batch));
+        ::metrics::histogram!("treemanip_batch_size", "model" => name.to_owned())
+            .record(merged.batch as f64);
+        queue.batches.fetch_add(1, Ordering::SeqCst);
+        queue.graphs.fetch_add(merged.batch, Ordering::SeqCst);
+        let started = Instant::now();
+        let result = session.run(&merged);
+        ::metrics::histogram!("treemanip_model_compute_seconds", "model" => name.to_owned())
+            .record(started.elapsed().as_secs_f64());
+        let expected = merged.batch * merged.n * 3;
+        let result = result.and_then(|o| {
+            if o.vectors.len() == expected {
+                Ok(o)
+            } else {
+                Err(InferError::Run(format!(
+                    "the model answered {} values for {expected}",
+                    o.vectors.len()
+                )))
+            }
+        });
+        match result {
+            Ok(output) => {
+                let mut row = 0;
+                for job in live {
+                    let part = slice(&output, &merged, row, job.batch.batch);
+                    row += job.batch.batch;
+                    let _ = job.reply.send(Ok(part));
+                }
+            }
+            Err(e) => {
+                for job in live {
+                    let _ = job.reply.send(Err(InferError::Run(e.to_string())));
+                }
+            }
+        }
+    }
+}
+
+/// Stacks batches of one task and padded size.
+fn concat<'a>(batches: impl Iterator<Item = &'a Batch> + Clone) -> Batch {
+    let first = batches.clone().next().expect("at least one job");
+    let mut out = Batch {
+        task: first.task,
+        batch: 0,
+        n: first.n,
+        nodes: Vec::new(),
+        edges: Vec::new(),
+        global: Vec::new(),
+        mask: Vec::new(),
+    };
+    for b in batches {
+        out.batch += b.batch;
+        out.nodes.extend_from_slice(&b.nodes);
+        out.edges.extend_from_slice(&b.edges);
+        out.global.extend_from_slice(&b.global);
+        out.mask.extend_from_slice(&b.mask);
+    }
+    out
+}
+
+/// The rows `start .. start + count` of a batched output.
+fn slice(output: &GnnOutput, merged: &Batch, start: usize, count: usize) -> GnnOutput {
+    let n = merged.n;
+    GnnOutput {
+        vectors: output.vectors[start * n * 3..(start + count) * n * 3].to_vec(),
+        affordance: output
+            .affordance
+            .as_ref()
+            .map(|a| a[start * n..(start + count) * n].to_vec()),
+    }
+}
