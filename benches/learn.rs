@@ -1,9 +1,8 @@
 //! Training throughput (burn, Flex backend) and inference latency of the
-//! committed `models/*.onnx` through ort, one graph per call, on every
-//! backend: the embedded tract and native ONNX Runtime (its library from
-//! `ORT_DYLIB_PATH`, else `scripts/fetch-onnxruntime`). A process runs on
-//! one backend only, so the bench runs itself once per backend and prints
-//! one table with the ratio.
+//! committed `models/*.onnx` through ort, one graph per call, on both
+//! compiled-in engines: tract and the default, ONNX Runtime embedded in
+//! the binary. A process runs on one backend only, so the bench runs
+//! itself once per backend and prints one table with the ratio.
 //!
 //!     cargo bench --bench learn                  # training and inference
 //!     cargo bench --bench learn -- inference     # inference only
@@ -165,25 +164,17 @@ fn inference_child(library: Option<std::path::PathBuf>) {
     }
 }
 
-/// ONNX Runtime's library: `ORT_DYLIB_PATH`, else fetched from PyPI.
-fn onnxruntime_library() -> Option<String> {
-    if let Ok(path) = std::env::var("ORT_DYLIB_PATH") {
-        return Some(path);
-    }
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/fetch-onnxruntime");
-    let out = std::process::Command::new(script).output().ok()?;
-    out.status
-        .success()
-        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_owned())
-}
-
 fn inference() {
     let exe = std::env::current_exe().unwrap();
-    let run = |library: Option<&str>| -> std::collections::BTreeMap<(String, usize), (f64, f64)> {
+    // `tract`: the compiled-in engine; `default`: what a process picks with
+    // no library given (the embedded ONNX Runtime when built with it).
+    let run = |tract: bool| -> std::collections::BTreeMap<(String, usize), (f64, f64)> {
         let mut cmd = std::process::Command::new(&exe);
         cmd.arg("inference-child").env_remove("ORT_DYLIB_PATH");
-        if let Some(l) = library {
-            cmd.env("ORT_DYLIB_PATH", l);
+        if tract {
+            cmd.env("TREEMANIP_BACKEND", "tract");
+        } else {
+            cmd.env_remove("TREEMANIP_BACKEND");
         }
         let out = cmd.output().expect("the bench runs itself");
         String::from_utf8_lossy(&out.stdout)
@@ -197,17 +188,20 @@ fn inference() {
             })
             .collect()
     };
-    let tract = run(None);
-    let library = onnxruntime_library();
-    let native = library.as_deref().map(|l| run(Some(l))).unwrap_or_default();
+    let tract = run(true);
+    let native = run(false);
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let default = if treemanip::infer::EMBEDDED {
+        "embedded ONNX Runtime"
+    } else {
+        "tract (built without the embedded ONNX Runtime)"
+    };
     println!(
-        "inference latency, batch 1, each backend in its own process ({threads} cores; tract with its multithreaded executor, ONNX Runtime {}):",
-        library.as_deref().unwrap_or("not available")
+        "inference latency, batch 1, each backend in its own process ({threads} cores): tract vs the default, {default}"
     );
     println!(
-        "  {:<17} {:>4} {:>12} {:>12} {:>16} {:>16} {:>8}",
-        "model", "N", "tract p50", "tract p95", "onnxruntime p50", "onnxruntime p95", "ratio"
+        "  {:<17} {:>4} {:>12} {:>12} {:>14} {:>14} {:>8}",
+        "model", "N", "tract p50", "tract p95", "default p50", "default p95", "ratio"
     );
     for ((stem, n), (t50, t95)) in &tract {
         let (o50, o95) = native
@@ -215,7 +209,7 @@ fn inference() {
             .copied()
             .unwrap_or((f64::NAN, f64::NAN));
         println!(
-            "  {stem:<17} {n:>4} {t50:>9.2} ms {t95:>9.2} ms {o50:>13.2} ms {o95:>13.2} ms {:>7.2}x",
+            "  {stem:<17} {n:>4} {t50:>9.2} ms {t95:>9.2} ms {o50:>11.2} ms {o95:>11.2} ms {:>7.2}x",
             t50 / o50
         );
     }

@@ -1,7 +1,6 @@
-//! Load benchmark of `POST /v1/forward` over loopback, on every backend
-//! (the embedded tract, and native ONNX Runtime from `ORT_DYLIB_PATH` or
-//! `scripts/fetch-onnxruntime`), with dynamic batching on (the default)
-//! and off (`--max-batch 1`):
+//! Load benchmark of `POST /v1/forward` over loopback, on both backends
+//! (tract, and the default: the ONNX Runtime embedded in the binary), with
+//! dynamic batching on (the default) and off (`--max-batch 1`):
 //! - latency of one request at a time, N = 10, 15, 30;
 //! - 64 concurrent single-action clients, and 4 clients of 64-action calls,
 //!   at N = 15 and 30: requests/s, actions/s, p50/p99 of the answered ones,
@@ -91,17 +90,22 @@ fn main() {
     let peak = peak::gemm_peak();
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     println!("f32 GEMM peak (1024³, {cores} threads, best of 8): {peak:.1} GFLOP/s");
-    let library = std::env::var("ORT_DYLIB_PATH").ok().or_else(|| {
+    // tract is forced with a library that does not exist; the default is
+    // the ONNX Runtime embedded in the binary (or, in a build without it,
+    // the library `scripts/fetch-onnxruntime` brings).
+    let mut backends: Vec<(&str, Option<String>)> =
+        vec![("tract", Some("/nonexistent/libonnxruntime.so".to_owned()))];
+    if treemanip::infer::EMBEDDED {
+        backends.push(("onnxruntime (embedded default)", None));
+    } else {
         let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/fetch-onnxruntime");
-        let out = std::process::Command::new(script).output().ok()?;
-        out.status
-            .success()
-            .then(|| String::from_utf8_lossy(&out.stdout).trim().to_owned())
-    });
-    let mut backends = vec![("tract", None)];
-    match &library {
-        Some(l) => backends.push(("onnxruntime", Some(l.clone()))),
-        None => println!("ONNX Runtime's library is not available: tract only"),
+        match std::process::Command::new(script).output() {
+            Ok(out) if out.status.success() => backends.push((
+                "onnxruntime",
+                Some(String::from_utf8_lossy(&out.stdout).trim().to_owned()),
+            )),
+            _ => println!("ONNX Runtime is not available: tract only"),
+        }
     }
     let models = concat!(env!("CARGO_MANIFEST_DIR"), "/models");
     println!(
@@ -112,9 +116,6 @@ fn main() {
             let mut args = vec!["--models-dir", models, "--max-in-flight", "64"];
             if let Some(l) = library {
                 args.extend(["--ort-dylib", l.as_str()]);
-            } else {
-                // The tract rows must not pick up a library from the environment.
-                args.extend(["--ort-dylib", "/nonexistent/libonnxruntime.so"]);
             }
             if !batching {
                 args.extend(["--max-batch", "1"]);

@@ -15,6 +15,7 @@ pub mod plan;
 pub mod predict;
 pub mod shutdown;
 pub mod simulate;
+pub mod timing;
 pub mod tree_json;
 pub mod v2;
 
@@ -27,7 +28,7 @@ use axum::http::header;
 use axum::response::IntoResponse;
 use axum::routing::{get, post};
 use serde_json::json;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use tokio::sync::Semaphore;
 
@@ -190,18 +191,32 @@ impl AppState {
         });
         let started = std::time::Instant::now();
         let cancel = CancelOnDrop(Arc::new(AtomicBool::new(false)));
+        let waited_ns = Arc::new(AtomicU64::new(0));
         let control = JobControl {
             deadline: Some(started + budget),
             cancelled: Some(cancel.0.clone()),
+            waited_ns: Some(waited_ns.clone()),
         };
         let job = tokio::task::spawn_blocking(move || {
             let _permit = permit;
-            work(control)
+            let began = std::time::Instant::now();
+            let result = work(control);
+            (began, began.elapsed(), result)
         });
         let result = match tokio::time::timeout(budget, job).await {
             Err(_) => Err(ApiError::timeout(budget.as_secs_f64())),
             Ok(Err(join)) => Err(ApiError::internal(format!("the worker failed: {join}"))),
-            Ok(Ok(result)) => result,
+            Ok(Ok((began, worked, result))) => {
+                // Waiting: for a blocking thread, then in the model queues;
+                // computing: the rest of the work.
+                let in_queues = Duration::from_nanos(waited_ns.load(Ordering::SeqCst));
+                let queued = began.duration_since(started) + in_queues;
+                let computed = worked.saturating_sub(in_queues);
+                ::metrics::histogram!("treemanip_queue_seconds", "route" => route)
+                    .record(queued.as_secs_f64());
+                let _ = timing::TIMING.try_with(|t| t.set(Some((queued, computed))));
+                result
+            }
         };
         drop(cancel);
         ::metrics::histogram!("treemanip_compute_seconds", "route" => route)
@@ -260,12 +275,20 @@ pub fn router(state: AppState) -> Router {
             shutdown::guard,
         ))
         .layer(axum::middleware::from_fn(metrics::track))
+        .layer(axum::middleware::from_fn(timing::headers))
         // A bug in one handler is that request's 500, in the error shape;
         // the server keeps serving.
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(
             panic_response,
         ))
         .layer(DefaultBodyLimit::max(body_limit))
+        // Every request gets an id (a client's own `x-request-id` is kept),
+        // echoed in the answer and named in its log lines.
+        .layer(tower_http::request_id::PropagateRequestIdLayer::x_request_id())
+        .layer(timing::RequestSpanLayer::new())
+        .layer(tower_http::request_id::SetRequestIdLayer::x_request_id(
+            tower_http::request_id::MakeRequestUuid,
+        ))
         .with_state(state)
 }
 

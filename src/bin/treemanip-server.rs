@@ -174,7 +174,7 @@ async fn serve(args: Args) -> anyhow::Result<()> {
     let grace = limits.request_timeout + std::time::Duration::from_secs(5);
     let state = AppState::new(limits).with_models(std::sync::Arc::new(models));
     let drain = state.drain.clone();
-    let app = api::router(state).layer(tower_http::trace::TraceLayer::new_for_http());
+    let app = api::router(state);
     axum::serve(listener, app)
         .with_graceful_shutdown(async move {
             api::shutdown::signal().await;

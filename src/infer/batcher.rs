@@ -12,7 +12,7 @@
 //! up the others.
 
 use std::collections::VecDeque;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
@@ -47,6 +47,8 @@ pub struct JobControl {
     pub deadline: Option<Instant>,
     /// Set when the caller no longer wants the answer.
     pub cancelled: Option<Arc<AtomicBool>>,
+    /// Nanoseconds the caller's jobs waited in the queue, added up.
+    pub waited_ns: Option<Arc<AtomicU64>>,
 }
 
 struct Job {
@@ -140,7 +142,12 @@ impl Batcher {
 
 impl Drop for Batcher {
     fn drop(&mut self) {
-        self.queue.closing.store(true, Ordering::SeqCst);
+        // Under the lock, so that no worker is between its check of
+        // `closing` and its wait when the notification comes.
+        {
+            let _jobs = self.queue.jobs.lock().unwrap_or_else(|p| p.into_inner());
+            self.queue.closing.store(true, Ordering::SeqCst);
+        }
         self.queue.arrived.notify_all();
         for w in self.workers.drain(..) {
             let _ = w.join();
@@ -196,8 +203,12 @@ fn worker(name: &str, queue: &Queue, mut session: OnnxModel, limits: BatchLimits
         let now = Instant::now();
         let mut live = Vec::new();
         for job in jobs {
+            let waited = now.duration_since(job.enqueued);
             ::metrics::histogram!("treemanip_model_queue_seconds", "model" => name.to_owned())
-                .record(now.duration_since(job.enqueued).as_secs_f64());
+                .record(waited.as_secs_f64());
+            if let Some(w) = &job.control.waited_ns {
+                w.fetch_add(waited.as_nanos() as u64, Ordering::SeqCst);
+            }
             let cancelled = job
                 .control
                 .cancelled

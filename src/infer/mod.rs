@@ -1,10 +1,17 @@
 //! Running exported ONNX models through `ort`.
 //!
-//! [`init_backend`] is called once per process: with a path to ONNX
-//! Runtime's shared library (`--ort-dylib` / `ORT_DYLIB_PATH`) that loads,
-//! ort runs on native ONNX Runtime; otherwise on tract (pure Rust, always
-//! available), with a logged notice. ort is never left to load a library
-//! on its own, which would panic when none is installed.
+//! [`init_backend`] is called once per process and picks the engine:
+//! 1. a path to ONNX Runtime's shared library (`--ort-dylib` /
+//!    `ORT_DYLIB_PATH`): native ONNX Runtime from it, or tract (with a
+//!    logged warning) when it does not load;
+//! 2. otherwise the ONNX Runtime library embedded in this binary at build
+//!    time (`build.rs`), written once to a cache file and loaded from there:
+//!    native speed with nothing to install;
+//! 3. otherwise (`TREEMANIP_BACKEND=tract`, or a build without the embedded
+//!    library) tract, pure Rust, always available.
+//!
+//! ort is never left to load a library on its own, which would panic when
+//! none is installed.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -15,6 +22,8 @@ use ort::value::TensorRef;
 use serde::Serialize;
 
 pub mod batcher;
+mod embedded;
+pub use embedded::EMBEDDED;
 pub mod contract;
 pub mod models;
 
@@ -25,8 +34,9 @@ use crate::nn::gnn::GnnOutput;
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Backend {
-    /// Native ONNX Runtime, loaded from this library.
-    OnnxRuntime { library: PathBuf },
+    /// Native ONNX Runtime, loaded from this library (`embedded`: the copy
+    /// carried in this binary).
+    OnnxRuntime { library: PathBuf, embedded: bool },
     /// tract, compiled in.
     Tract,
 }
@@ -61,7 +71,12 @@ pub fn init_backend(library: Option<&Path>) -> Result<Backend, InferError> {
     let requested = library
         .map(Path::to_path_buf)
         .or_else(|| std::env::var_os("ORT_DYLIB_PATH").map(PathBuf::from));
-    let native = requested.as_ref().and_then(|path| {
+    let tract_forced = std::env::var("TREEMANIP_BACKEND").is_ok_and(|b| b == "tract");
+    let embedded = match (&requested, tract_forced) {
+        (None, false) => embedded::library(),
+        _ => None,
+    };
+    let native = requested.as_ref().or(embedded.as_ref()).and_then(|path| {
         if !path.is_file() {
             tracing::warn!(library = %path.display(), "ONNX Runtime library not found; using tract");
             return None;
@@ -76,16 +91,26 @@ pub fn init_backend(library: Option<&Path>) -> Result<Backend, InferError> {
     });
     let engine = match native {
         Some((library, environment)) => Engine {
-            backend: Backend::OnnxRuntime { library },
+            backend: Backend::OnnxRuntime {
+                library,
+                embedded: requested.is_none(),
+            },
             environment,
         },
         None => {
             if requested.is_none() {
-                tracing::info!("no ONNX Runtime library given; running models on tract");
+                tracing::info!(
+                    "no ONNX Runtime library given or embedded; running models on tract"
+                );
             }
             // tract runs its matrix products on one thread unless given an
-            // executor; native ONNX Runtime uses every core by default.
-            let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+            // executor. Measured on the GNNs (2 cores, batch 1), its
+            // multithreaded executor is slower (N = 30: 14.6 vs 9.3 ms), so it
+            // is opt-in: `TREEMANIP_TRACT_THREADS=n`.
+            let threads = std::env::var("TREEMANIP_TRACT_THREADS")
+                .ok()
+                .and_then(|t| t.parse::<usize>().ok())
+                .unwrap_or(1);
             if threads > 1 {
                 tract_linalg::multithread::set_default_executor(
                     tract_linalg::multithread::Executor::multithread(threads),

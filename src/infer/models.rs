@@ -57,10 +57,18 @@ impl ServedModel {
                 path.display()
             )));
         }
-        let sessions = (0..sessions.max(1))
+        let mut sessions = (0..sessions.max(1))
             .map(|_| OnnxModel::with_threads(&bytes, metadata.clone(), Some(1)))
             .collect::<Result<Vec<_>, _>>()?;
         let task = sessions[0].task();
+        for session in &mut sessions {
+            canary(session, task).map_err(|e| {
+                InferError::Load(format!(
+                    "{}: start-up canary inference: {e}",
+                    path.display()
+                ))
+            })?;
+        }
         let domain = match metadata.iter().find(|(k, _)| k == "domain") {
             None => None,
             Some((_, text)) => {
@@ -106,6 +114,62 @@ impl ServedModel {
     pub fn batcher(&self) -> &Batcher {
         &self.batcher
     }
+}
+
+/// Every session must answer a tiny inference (a three-node tree) with
+/// finite outputs of the contract's shapes before it serves: a file that
+/// loads but computes garbage (NaN weights, a wrong graph) is refused at
+/// start-up instead of answering nonsense.
+fn canary(session: &mut OnnxModel, task: Task) -> Result<(), InferError> {
+    use crate::tree::Wood;
+    let positions = vec![
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(0.0, 0.0, 0.3),
+        Point3::new(0.1, 0.0, 0.5),
+    ];
+    let parents = vec![None, Some(0), Some(1)];
+    let wood = Wood::default();
+    let length = |a: usize, b: usize| (positions[b] - positions[a]).norm();
+    let branches = vec![
+        None,
+        Some(wood.branch(0.01, length(0, 1))),
+        Some(wood.branch(0.005, length(1, 2))),
+    ];
+    let tree =
+        Tree::new(positions, parents, branches).map_err(|e| InferError::Run(e.to_string()))?;
+    let graph = match task {
+        Task::Forward => encode_forward(&tree, 2, &Vector3::new(0.0, 0.05, 0.0)),
+        Task::Policy => {
+            let targets: Vec<_> = tree
+                .positions()
+                .iter()
+                .map(|p| p + Vector3::new(0.0, 0.03, 0.0))
+                .collect();
+            encode_policy(&tree, &targets)
+        }
+    }
+    .map_err(|e| InferError::Run(e.to_string()))?;
+    let b = batch(&[graph]).map_err(|e| InferError::Run(e.to_string()))?;
+    let out = session.run(&b)?;
+    let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+    if out.vectors.len() != 9 || !finite(&out.vectors) {
+        return Err(InferError::Run(format!(
+            "expected 3 finite vectors, got {:?}",
+            out.vectors
+        )));
+    }
+    if task == Task::Policy
+        && !out
+            .affordance
+            .as_deref()
+            .is_some_and(|a| a.len() == 3 && finite(a))
+    {
+        return Err(InferError::Run(format!(
+            "expected 3 finite affordances, got {:?}",
+            out.affordance
+        )));
+    }
+    Ok(())
 }
 
 /// Every model found in a directory.

@@ -81,12 +81,12 @@ fn jobs_queued_together_run_as_one_batch() {
 fn cancelled_and_expired_jobs_are_answered_without_running() {
     let model = served(64, Duration::ZERO);
     let cancelled = JobControl {
-        deadline: None,
         cancelled: Some(Arc::new(AtomicBool::new(true))),
+        ..JobControl::default()
     };
     let expired = JobControl {
         deadline: Some(Instant::now()),
-        cancelled: None,
+        ..JobControl::default()
     };
     assert!(matches!(
         model.batcher().run(job(10, 0), cancelled),

@@ -165,3 +165,31 @@ fn the_exported_file_describes_itself() {
     // A broken model is a load error, not a panic.
     assert!(OnnxModel::from_bytes(b"not onnx", Vec::new()).is_err());
 }
+
+/// Without a library given, the default backend is the ONNX Runtime
+/// embedded in the binary, and it computes what the reference pass does.
+#[test]
+fn the_embedded_onnx_runtime_is_the_default_and_matches_the_reference() {
+    if !treemanip::infer::EMBEDDED {
+        println!(
+            "skipped: built without the embedded ONNX Runtime (TREEMANIP_EMBED_ORT=0 or no network)"
+        );
+        return;
+    }
+    let backend = init_backend(None).unwrap();
+    assert!(
+        matches!(backend, Backend::OnnxRuntime { embedded: true, .. }),
+        "{backend:?}"
+    );
+    for task in [Task::Forward, Task::Policy] {
+        let weights = model(task);
+        let bytes = export(&weights, &[]);
+        let mut onnx = OnnxModel::from_bytes(&bytes, Vec::new()).unwrap();
+        let padded = batch(&graphs(task)).unwrap();
+        assert_close(
+            &forward(&weights, &padded),
+            &onnx.run(&padded).unwrap(),
+            &padded.mask,
+        );
+    }
+}

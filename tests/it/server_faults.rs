@@ -38,11 +38,28 @@ fn other_layout(bytes: &[u8]) -> Vec<u8> {
     .unwrap()
 }
 
+/// The model with every float weight NaN (it still loads: only what it
+/// computes is wrong).
+fn nan_weights(bytes: &[u8]) -> Vec<u8> {
+    use prost::Message;
+    let mut model = tract_onnx::pb::ModelProto::decode(bytes).unwrap();
+    let graph = model.graph.as_mut().unwrap();
+    for init in graph.initializer.iter_mut().filter(|t| t.data_type == 1) {
+        if init.float_data.is_empty() {
+            init.raw_data = f32::NAN.to_le_bytes().repeat(init.raw_data.len() / 4);
+        } else {
+            init.float_data.iter_mut().for_each(|x| *x = f32::NAN);
+        }
+    }
+    model.encode_to_vec()
+}
+
 #[test]
 fn a_broken_model_file_stops_start_up_naming_it() {
     for (tag, spoil, says) in [
         ("truncated-model", truncated as fn(&[u8]) -> Vec<u8>, ""),
         ("layout-model", other_layout, "feature layout version"),
+        ("nan-model", nan_weights, "canary"),
     ] {
         let dir = models_with_broken_forward(tag, spoil);
         let out = Command::new(env!("CARGO_BIN_EXE_treemanip-server"))
