@@ -168,13 +168,19 @@ fn inference() {
     let exe = std::env::current_exe().unwrap();
     // `tract`: the compiled-in engine; `default`: what a process picks with
     // no library given (the embedded ONNX Runtime when built with it).
-    let run = |tract: bool| -> std::collections::BTreeMap<(String, usize), (f64, f64)> {
+    // `dylib`: native ONNX Runtime loaded from a library on disk.
+    let run = |tract: bool,
+               dylib: Option<&str>|
+     -> std::collections::BTreeMap<(String, usize), (f64, f64)> {
         let mut cmd = std::process::Command::new(&exe);
         cmd.arg("inference-child").env_remove("ORT_DYLIB_PATH");
         if tract {
             cmd.env("TREEMANIP_BACKEND", "tract");
         } else {
             cmd.env_remove("TREEMANIP_BACKEND");
+        }
+        if let Some(path) = dylib {
+            cmd.env("ORT_DYLIB_PATH", path);
         }
         let out = cmd.output().expect("the bench runs itself");
         String::from_utf8_lossy(&out.stdout)
@@ -188,8 +194,20 @@ fn inference() {
             })
             .collect()
     };
-    let tract = run(true);
-    let native = run(false);
+    let tract = run(true, None);
+    let native = run(false, None);
+    let library = std::process::Command::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scripts/fetch-onnxruntime"
+    ))
+    .output()
+    .ok()
+    .filter(|o| o.status.success())
+    .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_owned());
+    let dylib = library
+        .as_deref()
+        .map(|l| run(false, Some(l)))
+        .unwrap_or_default();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let default = if treemanip::infer::EMBEDDED {
         "embedded ONNX Runtime"
@@ -200,17 +218,28 @@ fn inference() {
         "inference latency, batch 1, each backend in its own process ({threads} cores): tract vs the default, {default}"
     );
     println!(
-        "  {:<17} {:>4} {:>12} {:>12} {:>14} {:>14} {:>8}",
-        "model", "N", "tract p50", "tract p95", "default p50", "default p95", "ratio"
+        "  {:<17} {:>4} {:>10} {:>10} {:>12} {:>12} {:>16} {:>14} {:>16}",
+        "model",
+        "N",
+        "tract p50",
+        "tract p95",
+        "default p50",
+        "default p95",
+        "ORT_DYLIB_PATH p50",
+        "tract/native",
+        "default/native"
     );
     for ((stem, n), (t50, t95)) in &tract {
-        let (o50, o95) = native
-            .get(&(stem.clone(), *n))
-            .copied()
-            .unwrap_or((f64::NAN, f64::NAN));
+        let get = |m: &std::collections::BTreeMap<(String, usize), (f64, f64)>| {
+            m.get(&(stem.clone(), *n))
+                .copied()
+                .unwrap_or((f64::NAN, f64::NAN))
+        };
+        let ((o50, o95), (d50, _)) = (get(&native), get(&dylib));
         println!(
-            "  {stem:<17} {n:>4} {t50:>9.2} ms {t95:>9.2} ms {o50:>11.2} ms {o95:>11.2} ms {:>7.2}x",
-            t50 / o50
+            "  {stem:<17} {n:>4} {t50:>7.2} ms {t95:>7.2} ms {o50:>9.2} ms {o95:>9.2} ms {d50:>15.2} ms {:>13.2}x {:>15.2}x",
+            t50 / d50,
+            o50 / d50
         );
     }
 }

@@ -128,6 +128,7 @@ async fn serve(args: Args) -> anyhow::Result<()> {
     let sessions = std::thread::available_parallelism().map_or(2, |n| n.get());
     let batching = treemanip::infer::batcher::BatchLimits {
         max_batch: args.max_batch,
+        max_pairs: treemanip::infer::batcher::MAX_PAIRS,
         max_delay: std::time::Duration::from_micros(args.max_queue_delay_us),
     };
     let models = ModelSet::load_dir_with(

@@ -4,7 +4,8 @@
 //! ranking, one round of the planner's push search) is a job in the model's
 //! queue. Each of the model's sessions has a worker thread that takes the
 //! oldest job, adds the other queued jobs with the same padded tree size up
-//! to `max_batch` graphs (waiting up to `max_delay` after the oldest job
+//! to `max_batch` graphs and `max_pairs` node pairs (waiting up to
+//! `max_delay` after the oldest job
 //! arrived for more to come), runs them as one batch, and answers each job
 //! with its own rows. Jobs whose caller has gone (a closed connection) or
 //! whose deadline has passed are answered without running. No job waits
@@ -22,11 +23,25 @@ use super::{InferError, OnnxModel};
 use crate::graph::Batch;
 use crate::nn::gnn::GnnOutput;
 
+/// Default of [`BatchLimits::max_pairs`]: 64 graphs of 15 nodes, 16 of 30
+/// (measured: at N = 30 batches of 64 ran slower per graph than single
+/// graphs).
+pub const MAX_PAIRS: usize = 64 * 15 * 15;
+
+/// Graphs of `n` nodes a batch holds within the limits.
+pub fn graphs_per_batch(n: usize, max_batch: usize, max_pairs: usize) -> usize {
+    (max_pairs / (n * n).max(1)).clamp(1, max_batch.max(1))
+}
+
 /// How large a batch may grow and how long its first job may wait for it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BatchLimits {
     /// Graphs in one batch (a larger job runs alone).
     pub max_batch: usize,
+    /// Node pairs (Σ N² over the graphs) in one batch: the edge tensors
+    /// grow with N², and past about this many pairs a batch no longer fits
+    /// the caches and runs slower per graph than smaller ones.
+    pub max_pairs: usize,
     /// Longest a job waits for others to join its batch.
     pub max_delay: Duration,
 }
@@ -35,6 +50,7 @@ impl Default for BatchLimits {
     fn default() -> Self {
         Self {
             max_batch: 64,
+            max_pairs: MAX_PAIRS,
             max_delay: Duration::from_micros(200),
         }
     }
@@ -170,9 +186,10 @@ fn next_jobs(queue: &Queue, limits: BatchLimits) -> Option<Vec<Job>> {
         };
         let (n, task, since) = (first.batch.n, first.batch.task, first.enqueued);
         let fits = |j: &Job| j.batch.n == n && j.batch.task == task;
+        let max_batch = graphs_per_batch(n, limits.max_batch, limits.max_pairs);
         let graphs: usize = jobs.iter().filter(|j| fits(j)).map(|j| j.batch.batch).sum();
         let waited = since.elapsed();
-        if graphs < limits.max_batch && waited < limits.max_delay {
+        if graphs < max_batch && waited < limits.max_delay {
             jobs = queue
                 .arrived
                 .wait_timeout(jobs, limits.max_delay - waited)
@@ -185,7 +202,7 @@ fn next_jobs(queue: &Queue, limits: BatchLimits) -> Option<Vec<Job>> {
         let mut k = 0;
         while k < jobs.len() {
             let size = jobs[k].batch.batch;
-            if fits(&jobs[k]) && (taken.is_empty() || total + size <= limits.max_batch) {
+            if fits(&jobs[k]) && (taken.is_empty() || total + size <= max_batch) {
                 total += size;
                 taken.push(jobs.remove(k).expect("index in range"));
             } else {

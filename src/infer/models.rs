@@ -244,7 +244,8 @@ impl ModelSet {
 }
 
 /// Predicted displacements Δp (m) per node, for each (contact node, push).
-/// Chunks of [`MAX_BATCH`] actions are queued together, so the model's
+/// Chunks of at most [`MAX_BATCH`] actions (fewer for large trees, see
+/// [`super::batcher::MAX_PAIRS`]) are queued together, so the model's
 /// sessions run them in parallel.
 pub fn predict_displacements(
     model: &ServedModel,
@@ -254,7 +255,8 @@ pub fn predict_displacements(
 ) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
     let n = tree.len();
     let mut pending = Vec::new();
-    for chunk in actions.chunks(MAX_BATCH) {
+    let per_chunk = super::batcher::graphs_per_batch(n, MAX_BATCH, super::batcher::MAX_PAIRS);
+    for chunk in actions.chunks(per_chunk) {
         let graphs = chunk
             .iter()
             .map(|(node, push)| encode_forward(tree, *node, push))

@@ -29,6 +29,7 @@ fn served(max_batch: usize, max_delay: Duration) -> ServedModel {
         BatchLimits {
             max_batch,
             max_delay,
+            ..BatchLimits::default()
         },
     )
     .unwrap()
@@ -60,6 +61,33 @@ fn batched_answers_equal_unbatched_ones_across_mixed_tree_sizes() {
             assert!((w - g).abs() <= 1e-5 * (1.0 + w.abs()), "{w} vs {g}");
         }
     }
+}
+
+#[test]
+fn large_trees_get_smaller_batches() {
+    use treemanip::infer::batcher::{MAX_PAIRS, graphs_per_batch};
+    assert_eq!(graphs_per_batch(15, 64, MAX_PAIRS), 64);
+    assert_eq!(graphs_per_batch(30, 64, MAX_PAIRS), 16);
+    assert_eq!(graphs_per_batch(64, 64, MAX_PAIRS), 3);
+    assert_eq!(graphs_per_batch(200, 64, MAX_PAIRS), 1);
+    // Eight queued jobs of 30 nodes with room for 4 · 30² pairs: 4 per batch.
+    let model = ServedModel::load_with(
+        Path::new(MODEL),
+        1,
+        BatchLimits {
+            max_batch: 64,
+            max_pairs: 4 * 900,
+            max_delay: Duration::from_secs(5),
+        },
+    )
+    .unwrap();
+    let pending: Vec<_> = (0..8)
+        .map(|k| model.batcher().submit(job(30, k), JobControl::default()))
+        .collect();
+    for p in pending {
+        p.wait().unwrap();
+    }
+    assert_eq!(model.batcher().batches_run(), (2, 8));
 }
 
 #[test]
