@@ -6,10 +6,14 @@
 # 1. The release binary.
 FROM rust:1.95-bookworm AS build
 WORKDIR /src
-COPY Cargo.toml Cargo.lock openapi.yaml ./
+COPY Cargo.toml Cargo.lock build.rs openapi.yaml ./
+COPY scripts/fetch-onnxruntime scripts/fetch-onnxruntime
 COPY src src
 COPY benches benches
 COPY assets assets
+# The runtime stage loads ONNX Runtime from ORT_DYLIB_PATH, so the binary
+# need not carry its own copy.
+ENV TREEMANIP_EMBED_ORT=0
 RUN cargo build --release --locked --bin treemanip-server
 
 # 2. ONNX Runtime's shared library from PyPI's onnxruntime wheel.

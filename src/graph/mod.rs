@@ -25,6 +25,7 @@
 //! largest N with a node mask; padded nodes and self-edges carry zeros and
 //! are excluded from sums by the mask.
 
+pub mod contract;
 pub mod stats;
 
 use nalgebra::{Point3, Vector3};

@@ -22,9 +22,12 @@ use ort::value::TensorRef;
 use serde::Serialize;
 
 pub mod batcher;
+/// The model I/O contract lives with the graph encoding (the exporter in
+/// `nn` uses it too); re-exported here for the runner's users.
+pub use crate::graph::contract;
 mod embedded;
 pub use embedded::EMBEDDED;
-pub mod contract;
+
 pub mod models;
 
 use crate::graph::{Batch, EDGE_DIM};
@@ -183,8 +186,8 @@ impl OnnxModel {
             .map(|o| o.name().to_owned())
             .collect();
         Ok(Self {
-            has_global: names.iter().any(|n| n == "global"),
-            has_affordance: outputs.iter().any(|n| n == "affordance"),
+            has_global: names.iter().any(|n| n == contract::GLOBAL),
+            has_affordance: outputs.iter().any(|n| n == contract::AFFORDANCE),
             session,
             metadata,
         })
@@ -204,23 +207,23 @@ impl OnnxModel {
             let global =
                 TensorRef::from_array_view(([b, 3], batch.global.as_slice())).map_err(run)?;
             self.session
-                .run(ort::inputs!["nodes" => nodes, "edges" => edges, "global" => global, "mask" => mask])
+                .run(ort::inputs![contract::NODES => nodes, contract::EDGES => edges, contract::GLOBAL => global, contract::MASK => mask])
                 .map_err(run)?
         } else {
             self.session
-                .run(ort::inputs!["nodes" => nodes, "edges" => edges, "mask" => mask])
+                .run(ort::inputs![contract::NODES => nodes, contract::EDGES => edges, contract::MASK => mask])
                 .map_err(run)?
         };
         let vector_name = if self.has_affordance {
-            "action"
+            contract::ACTION
         } else {
-            "displacement"
+            contract::DISPLACEMENT
         };
         let (_, vectors) = outputs[vector_name]
             .try_extract_tensor::<f32>()
             .map_err(run)?;
         let affordance = if self.has_affordance {
-            let (_, a) = outputs["affordance"]
+            let (_, a) = outputs[contract::AFFORDANCE]
                 .try_extract_tensor::<f32>()
                 .map_err(run)?;
             Some(a.to_vec())

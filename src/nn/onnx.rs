@@ -11,6 +11,7 @@
 //! W_g g + W_i n_i + W_j n_j + W_e e_ij, so the node terms are computed once
 //! per node and broadcast over the N × N edges.
 
+use crate::graph::contract;
 use prost::Message;
 use tract_onnx::pb::{
     self, AttributeProto, GraphProto, ModelProto, NodeProto, OperatorSetIdProto,
@@ -194,8 +195,8 @@ pub fn export(weights: &GnnWeights, metadata: &[(String, String)]) -> Vec<u8> {
     let inputs = graph_inputs(task);
 
     // Edge mask m[b, i, j] = mask_i · mask_j · (i ≠ j), as [B, N, N, 1].
-    let mask_i = g.unsqueeze("mask", &[2]);
-    let mask_j = g.unsqueeze("mask", &[1]);
+    let mask_i = g.unsqueeze(contract::MASK, &[2]);
+    let mask_j = g.unsqueeze(contract::MASK, &[1]);
     let pair = g.op("Mul", &[&mask_i, &mask_j], vec![]);
     let zero = g.constant_i64("index", vec![0]);
     let first = g.op("Gather", &[&pair, &zero], vec![int_attribute("axis", 0)]); // [1, N, N]
@@ -210,7 +211,7 @@ pub fn export(weights: &GnnWeights, metadata: &[(String, String)]) -> Vec<u8> {
         let from = g.constant_i64("starts", vec![4]);
         let to = g.constant_i64("ends", vec![5]);
         let axis = g.constant_i64("axes", vec![3]);
-        let stiffness = g.op("Slice", &["edges", &from, &to, &axis], vec![]);
+        let stiffness = g.op("Slice", &[contract::EDGES, &from, &to, &axis], vec![]);
         let zero = g.constant_f32("zero", &[], vec![0.0]);
         let branch = g.op("Greater", &[&stiffness, &zero], vec![]);
         let branch = g.op(
@@ -224,8 +225,8 @@ pub fn export(weights: &GnnWeights, metadata: &[(String, String)]) -> Vec<u8> {
         edge_mask = g.op("Mul", &[&edge_mask, &branch], vec![]);
     }
 
-    let nodes = g.normalise("nodes", &s.node_mean, &s.node_std);
-    let mut edges = g.normalise("edges", &s.edge_mean, &s.edge_std);
+    let nodes = g.normalise(contract::NODES, &s.node_mean, &s.node_std);
+    let mut edges = g.normalise(contract::EDGES, &s.edge_mean, &s.edge_std);
     let columns = weights.config.edge_attributes.column_mask();
     if columns.contains(&0.0) {
         let keep = g.constant_f32("columns", &[EDGE_DIM as i64], columns.to_vec());
@@ -234,7 +235,7 @@ pub fn export(weights: &GnnWeights, metadata: &[(String, String)]) -> Vec<u8> {
     let mut hn = g.mlp(&nodes, &weights.node_encoder);
     let mut he = g.mlp(&edges, &weights.edge_encoder);
     let hg = weights.global_encoder.as_ref().map(|enc| {
-        let global = g.normalise("global", &s.global_mean, &s.global_std);
+        let global = g.normalise(contract::GLOBAL, &s.global_mean, &s.global_std);
         g.mlp(&global, enc)
     });
     let hg_width = if hg.is_some() { h } else { 0 };
@@ -303,13 +304,13 @@ fn graph_inputs(task: Task) -> Vec<ValueInfoProto> {
     let nd = task.node_dim().to_string();
     let edge_dim = EDGE_DIM.to_string();
     let mut inputs = vec![
-        tensor_value("nodes", &["B", "N", &nd]),
-        tensor_value("edges", &["B", "N", "N", &edge_dim]),
+        tensor_value(contract::NODES, &["B", "N", &nd]),
+        tensor_value(contract::EDGES, &["B", "N", "N", &edge_dim]),
     ];
     if task.global_dim() > 0 {
-        inputs.push(tensor_value("global", &["B", "3"]));
+        inputs.push(tensor_value(contract::GLOBAL, &["B", "3"]));
     }
-    inputs.push(tensor_value("mask", &["B", "N"]));
+    inputs.push(tensor_value(contract::MASK, &["B", "N"]));
     inputs
 }
 
@@ -330,9 +331,9 @@ impl Builder {
         let mean = g.constant_f32("out_mean", &[3], mean.iter().map(|v| *v as f32).collect());
         let scaled = g.op("Mul", &[raw, &std], vec![]);
         let vector_name = if task == Task::Forward {
-            "displacement"
+            contract::DISPLACEMENT
         } else {
-            "action"
+            contract::ACTION
         };
         g.op_named("Add", &[&scaled, &mean], vec![], vector_name);
         let mut outputs = vec![tensor_value(vector_name, &["B", "N", "3"])];
@@ -341,7 +342,7 @@ impl Builder {
             let logits = g.op("Squeeze", &[logits, &two], vec![]);
             // Padded nodes get a logit of −1e9, hence zero affordance.
             let one = g.constant_f32("one", &[], vec![1.0]);
-            let off = g.op("Sub", &["mask", &one], vec![]);
+            let off = g.op("Sub", &[contract::MASK, &one], vec![]);
             let big = g.constant_f32("big", &[], vec![1e9]);
             let penalty = g.op("Mul", &[&off, &big], vec![]);
             let masked = g.op("Add", &[&logits, &penalty], vec![]);
@@ -349,9 +350,9 @@ impl Builder {
                 "Softmax",
                 &[&masked],
                 vec![int_attribute("axis", 1)],
-                "affordance",
+                contract::AFFORDANCE,
             );
-            outputs.push(tensor_value("affordance", &["B", "N"]));
+            outputs.push(tensor_value(contract::AFFORDANCE, &["B", "N"]));
         }
         outputs
     }
@@ -406,18 +407,18 @@ pub fn export_pointnet(weights: &PointNetWeights, metadata: &[(String, String)])
     let starts = g.constant_i64("starts", vec![0, 0]);
     let ends = g.constant_i64("ends", vec![1, 3]);
     let axes = g.constant_i64("axes", vec![1, 3]);
-    let row = g.op("Slice", &["edges", &starts, &ends, &axes], vec![]);
+    let row = g.op("Slice", &[contract::EDGES, &starts, &ends, &axes], vec![]);
     let one = g.constant_i64("axes", vec![1]);
     let position = g.op("Squeeze", &[&row, &one], vec![]);
     let position = g.normalise(&position, &weights.position_mean, &weights.position_std);
-    let nodes = g.normalise("nodes", &s.node_mean, &s.node_std);
+    let nodes = g.normalise(contract::NODES, &s.node_mean, &s.node_std);
 
     let first = &weights.local[0];
     let mut pre = g.matmul_columns(&position, first, 0, 3);
     let node_term = g.matmul_columns(&nodes, first, 3, 3 + nd);
     pre = g.op("Add", &[&pre, &node_term], vec![]);
     if gd > 0 {
-        let global = g.normalise("global", &s.global_mean, &s.global_std);
+        let global = g.normalise(contract::GLOBAL, &s.global_mean, &s.global_std);
         let global_term = g.matmul_columns(&global, first, 3 + nd, 3 + nd + gd);
         let global_term = g.unsqueeze(&global_term, &[1]);
         pre = g.op("Add", &[&pre, &global_term], vec![]);
@@ -433,7 +434,7 @@ pub fn export_pointnet(weights: &PointNetWeights, metadata: &[(String, String)])
     let f = g.op("Relu", &[&f], vec![]);
     // Features are ≥ 0 after the ReLU, so zeroing padded points leaves the
     // max over real points unchanged.
-    let point_mask = g.unsqueeze("mask", &[2]);
+    let point_mask = g.unsqueeze(contract::MASK, &[2]);
     let f = g.op("Mul", &[&f, &point_mask], vec![]);
     // Opset 17's ReduceMax takes its axes as an attribute.
     let global_feature = g.op(

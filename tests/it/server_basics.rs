@@ -291,3 +291,72 @@ fn sigterm_lets_an_in_flight_request_finish() {
     server.wait_for_clean_exit("server did not exit after the request");
     assert!(TcpStream::connect(&server.addr).is_err());
 }
+
+/// Every request gets an id (a client's own `x-request-id` is kept), which
+/// the answer echoes and the JSON log names, with one access line per answer.
+#[test]
+fn request_ids_are_echoed_and_logged() {
+    use std::io::BufRead;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_treemanip-server"))
+        .args([
+            "--bind",
+            "127.0.0.1:0",
+            "--log-format",
+            "json",
+            "--models-dir",
+        ])
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/models"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let addr = line
+        .trim()
+        .strip_prefix("listening on http://")
+        .unwrap()
+        .to_owned();
+    let mut stream = TcpStream::connect(&addr).unwrap();
+    write!(
+        stream,
+        "GET /healthz HTTP/1.1\r\nHost: x\r\nx-request-id: client-id-4711\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut answer = String::new();
+    stream.read_to_string(&mut answer).unwrap();
+    assert!(
+        answer
+            .to_lowercase()
+            .contains("x-request-id: client-id-4711"),
+        "{answer}"
+    );
+    // An id is made up when the client sends none.
+    let mut stream = TcpStream::connect(&addr).unwrap();
+    write!(
+        stream,
+        "GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut answer = String::new();
+    stream.read_to_string(&mut answer).unwrap();
+    assert!(answer.to_lowercase().contains("x-request-id: "), "{answer}");
+    let _ = child.kill();
+    let mut logs = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut logs)
+        .unwrap();
+    let _ = child.wait();
+    let access = logs
+        .lines()
+        .find(|l| l.contains("client-id-4711") && l.contains("answered"))
+        .unwrap_or_else(|| panic!("no access line with the request id in:\n{logs}"));
+    let entry: Value = serde_json::from_str(access).unwrap();
+    assert_eq!(entry["level"], "INFO");
+    assert_eq!(entry["fields"]["status"], 200);
+}

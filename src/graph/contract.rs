@@ -4,7 +4,7 @@
 //! endpoints describe and check them. Values are raw SI features from
 //! [`crate::graph`]; normalisation happens inside the graph.
 
-use crate::graph::{Batch, EDGE_DIM, Task};
+use super::{Batch, EDGE_DIM, Task};
 
 pub const NODES: &str = "nodes";
 pub const EDGES: &str = "edges";
