@@ -28,6 +28,8 @@ pub struct ServedModel {
     /// Trees and pushes the model answers for (metadata `domain`); `None`
     /// for models exported before domains were recorded.
     pub domain: Option<Domain>,
+    /// Sessions, each with its batching worker.
+    pub sessions: usize,
     batcher: Batcher,
 }
 
@@ -88,6 +90,7 @@ impl ServedModel {
             .unwrap_or_default();
         Ok(Self {
             domain,
+            sessions: sessions.len(),
             batcher: Batcher::start(&name, sessions, limits),
             name,
             task,
@@ -255,7 +258,11 @@ pub fn predict_displacements(
 ) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
     let n = tree.len();
     let mut pending = Vec::new();
-    let per_chunk = super::batcher::graphs_per_batch(n, MAX_BATCH, super::batcher::MAX_PAIRS);
+    // Split so that every session gets a share of a small call (a planner's
+    // search round runs on all cores), and large trees get smaller chunks.
+    let per_chunk = super::batcher::graphs_per_batch(n, MAX_BATCH, super::batcher::MAX_PAIRS)
+        .min(actions.len().div_ceil(model.sessions.max(1)))
+        .max(1);
     for chunk in actions.chunks(per_chunk) {
         let graphs = chunk
             .iter()

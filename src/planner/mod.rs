@@ -25,7 +25,7 @@ use serde::Serialize;
 use crate::infer::InferError;
 use crate::infer::models::{ServedModel, rank_candidates};
 use crate::robot::collision::{Allowed, CollisionModel, Obstacle, TreeObstacles};
-use crate::robot::plan::{Outcome, PlanOptions, PushPlan, execute, push_snapshots, reach};
+use crate::robot::plan::{Outcome, PlanOptions, PushPlan, PushSnapshots, execute, reach};
 use crate::robot::rrt::{Config, MotionValidator};
 use crate::robot::scene::PlanningScene;
 use crate::robot::{Ur5, ur5};
@@ -424,7 +424,9 @@ impl Run<'_> {
         } else {
             Outcome::Unreachable
         };
-        let mut snapshots = None;
+        // The deformed tree does not depend on the base: simulated once, as
+        // far as the push lines get.
+        let snapshots = PushSnapshots::new(tree, push, self.rest);
         let mut result = None;
         for placed in placements {
             let remaining = self.remaining();
@@ -439,17 +441,11 @@ impl Run<'_> {
                     continue;
                 }
             };
-            // The deformed tree does not depend on the base: simulate once.
-            let snaps = snapshots.get_or_insert_with(|| push_snapshots(tree, push, self.rest));
-            let Some(snaps) = snaps.as_deref() else {
-                outcome = Outcome::PushInfeasible;
-                break;
-            };
             match execute(
                 &placed.arm,
                 tree,
                 self.rest,
-                snaps,
+                &snapshots,
                 push,
                 &goals,
                 &placed.start,

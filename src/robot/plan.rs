@@ -210,8 +210,7 @@ pub fn plan_push_among(
         }
         let started = Instant::now();
         let result = reach(model, tree, obstacles, candidate, start).and_then(|goals| {
-            let snapshots =
-                push_snapshots(tree, candidate, obstacles).ok_or(Outcome::PushInfeasible)?;
+            let snapshots = PushSnapshots::new(tree, candidate, obstacles);
             execute(
                 model, tree, obstacles, &snapshots, candidate, &goals, start, options,
             )
@@ -292,15 +291,15 @@ pub fn reach(
 }
 
 /// Carries out a reachable push: checks the straight push from each of
-/// `goals` (from [`reach`]) against the tree as it deforms (`snapshots`,
-/// from [`push_snapshots`]), plans the approach from `start` with RRT*,
+/// `goals` (from [`reach`]) against the tree as it deforms (`snapshots`),
+/// plans the approach from `start` with RRT*,
 /// shortcuts and times it. The plan's `rank` is left 0 for the caller.
 #[allow(clippy::too_many_arguments)]
 pub fn execute(
     model: &CollisionModel,
     tree: &Tree,
     obstacles: &TreeObstacles,
-    snapshots: &[TreeObstacles],
+    snapshots: &PushSnapshots<'_>,
     push: &Push,
     goals: &[Config],
     start: &Config,
@@ -317,13 +316,13 @@ pub fn execute(
     // simulated tree every PUSH_SNAPSHOT of push.
     let edge_free = |a: &Config, b: &Config, distance: f64| -> bool {
         let contact = (distance - APPROACH_OFFSET).max(0.0);
-        let index = ((contact / PUSH_SNAPSHOT).ceil() as usize).min(snapshots.len() - 1);
         let at = if distance <= APPROACH_OFFSET {
-            obstacles
+            Some(obstacles)
         } else {
-            &snapshots[index]
+            snapshots.at((contact / PUSH_SNAPSHOT).ceil() as usize)
         };
-        PlanningScene::new(model, at, pushed.clone()).edge_valid(a, b)
+        // A push the simulator rejects part of is infeasible.
+        at.is_some_and(|at| PlanningScene::new(model, at, pushed.clone()).edge_valid(a, b))
     };
     let pushes: Vec<(Config, Vec<Config>)> = goals
         .iter()
@@ -367,27 +366,54 @@ pub fn execute(
     })
 }
 
-/// The tree during the push: snapshot k is the steady state after k·1 cm
-/// of push (k = 0 is the tree at rest, the last the full push), each with
-/// the fixed obstacles of `rest`. `None` when the simulator rejects part of
-/// the push.
-pub fn push_snapshots(
-    tree: &Tree,
-    push: &Push,
-    rest: &TreeObstacles,
-) -> Option<Vec<TreeObstacles>> {
-    let length = push.vector.norm();
-    let count = (length / PUSH_SNAPSHOT).ceil().max(1.0) as usize;
-    let mut snapshots = vec![rest.clone()];
-    for k in 1..=count {
-        let partial = Push {
-            node: push.node,
-            vector: push.vector * (k as f64 / count as f64),
-        };
-        let outcome = simulate(tree, &partial, &SimConfig::default()).ok()?;
-        snapshots.push(rest.with_tree_at(tree, &outcome.final_positions));
+/// The tree during a push: snapshot k is the steady state after k·1 cm of
+/// push (k = 0 is the tree at rest, the last the full push), each with the
+/// fixed obstacles of `rest`. Each is simulated when first asked for, so a
+/// push line that collides early costs only the snapshots it reached; one
+/// set serves every base a planner tries.
+pub struct PushSnapshots<'a> {
+    tree: &'a Tree,
+    push: Push,
+    rest: &'a TreeObstacles,
+    /// Snapshots 1..=count; `None` inside: the simulator rejects that part.
+    cache: Vec<std::cell::OnceCell<Option<TreeObstacles>>>,
+}
+
+impl<'a> PushSnapshots<'a> {
+    pub fn new(tree: &'a Tree, push: &Push, rest: &'a TreeObstacles) -> Self {
+        let count = (push.vector.norm() / PUSH_SNAPSHOT).ceil().max(1.0) as usize;
+        Self {
+            tree,
+            push: *push,
+            rest,
+            cache: (0..count).map(|_| std::cell::OnceCell::new()).collect(),
+        }
     }
-    Some(snapshots)
+
+    /// Number of snapshots after the rest state.
+    pub fn count(&self) -> usize {
+        self.cache.len()
+    }
+
+    /// Snapshot `k` (clamped to the last), or `None` when the simulator
+    /// rejects the push that far.
+    pub fn at(&self, k: usize) -> Option<&TreeObstacles> {
+        if k == 0 {
+            return Some(self.rest);
+        }
+        let k = k.min(self.count());
+        self.cache[k - 1]
+            .get_or_init(|| {
+                let partial = Push {
+                    node: self.push.node,
+                    vector: self.push.vector * (k as f64 / self.count() as f64),
+                };
+                simulate(self.tree, &partial, &SimConfig::default())
+                    .ok()
+                    .map(|o| self.rest.with_tree_at(self.tree, &o.final_positions))
+            })
+            .as_ref()
+    }
 }
 
 /// Joint configurations along the straight push from `goal`, every
