@@ -173,14 +173,13 @@ impl OnnxModel {
             // through it, and the arena keeps the largest it has seen (a
             // 10-minute soak grew the resident set 12.5 % with them); mimalloc
             // reuses the freed buffers instead.
+            let cpu = ort::ep::CPU::default().with_arena_allocator(false).build();
             builder = builder
                 .with_intra_threads(threads)
-                .and_then(|b| b.with_memory_pattern(false))
-                .and_then(|b| {
-                    b.with_execution_providers([ort::ep::CPU::default()
-                        .with_arena_allocator(false)
-                        .build()])
-                })
+                .map_err(|e| load(e.to_string()))?
+                .with_memory_pattern(false)
+                .map_err(|e| load(e.to_string()))?
+                .with_execution_providers([cpu])
                 .map_err(|e| load(e.to_string()))?;
         }
         let session = builder
