@@ -168,18 +168,8 @@ impl OnnxModel {
             .with_optimization_level(GraphOptimizationLevel::Level3)
             .map_err(|e| load(e.to_string()))?;
         if let (Some(threads), Backend::OnnxRuntime { .. }) = (intra_threads, &engine.backend) {
-            // A served session (one per core) also gives up ONNX Runtime's
-            // arena and memory patterns: batches of every size pass
-            // through it, and the arena keeps the largest it has seen (a
-            // 10-minute soak grew the resident set 12.5 % with them); mimalloc
-            // reuses the freed buffers instead.
-            let cpu = ort::ep::CPU::default().with_arena_allocator(false).build();
             builder = builder
                 .with_intra_threads(threads)
-                .map_err(|e| load(e.to_string()))?
-                .with_memory_pattern(false)
-                .map_err(|e| load(e.to_string()))?
-                .with_execution_providers([cpu])
                 .map_err(|e| load(e.to_string()))?;
         }
         let session = builder
