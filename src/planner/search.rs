@@ -4,13 +4,14 @@
 //! largest node distance to the target (the paper's metric).
 
 use nalgebra::{Point3, Vector3};
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use super::predict::{Predictor, max_node_error};
 use crate::infer::InferError;
 use crate::sim::Push;
+use crate::sim::sampling::standard_normal;
 use crate::tree::Tree;
 
 /// The paper's pushes are 5-15 cm; the forward model was trained on them.
@@ -58,12 +59,6 @@ fn clamp_length(v: Vector3<f64>) -> Option<Vector3<f64>> {
     (length.is_finite() && length > 1e-9).then(|| v * (length.clamp(MIN_PUSH, MAX_PUSH) / length))
 }
 
-fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
-    // Box-Muller; 1 - u keeps the logarithm finite.
-    let (u, v): (f64, f64) = (rng.random(), rng.random());
-    (-2.0 * (1.0 - u).ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-}
-
 /// Searches a push for each seed (node, T_j). `feasible` prunes pushes the
 /// arm cannot carry out before they are predicted. Returns every scored
 /// push, best first, and the number of predictions made.
@@ -94,8 +89,11 @@ pub fn search_pushes(
                 let vector = if round == 0 && i == 0 {
                     *mean // the policy's own push is always a candidate
                 } else {
-                    let noise =
-                        Vector3::new(gaussian(&mut rng), gaussian(&mut rng), gaussian(&mut rng));
+                    let noise = Vector3::new(
+                        standard_normal(&mut rng),
+                        standard_normal(&mut rng),
+                        standard_normal(&mut rng),
+                    );
                     match clamp_length(mean + noise * *sigma) {
                         Some(v) => v,
                         None => continue,

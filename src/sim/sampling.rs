@@ -59,7 +59,7 @@ impl PushDistribution {
 
 /// Box–Muller; only the direction of the 3-vector matters, so one draw per
 /// coordinate keeps the sample isotropic.
-fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
+pub fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
     let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
     let u2: f64 = rng.random();
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
