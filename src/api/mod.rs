@@ -5,7 +5,9 @@
 //!
 //! Routes: `GET /healthz`, `GET /readyz`, `GET /metrics`, `GET /openapi.yaml`,
 //! `GET /v1/models`, `POST /v1/forward`, `POST /v1/policy`, `POST /v1/plan`,
-//! `POST /v1/simulate`. Described in `openapi.yaml`.
+//! `POST /v1/simulate`, `POST /v1/trees/urdf`, `GET /v1/trees/example`,
+//! `POST /v1/robot/link-poses`, and the viewer page `GET /viewer`.
+//! Described in `openapi.yaml`.
 
 pub mod domain;
 pub mod error;
@@ -13,11 +15,13 @@ pub mod json;
 pub mod metrics;
 pub mod plan;
 pub mod predict;
+pub mod scene;
 pub mod shutdown;
 pub mod simulate;
 pub mod timing;
 pub mod tree_json;
 pub mod v2;
+pub mod viewer;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -262,6 +266,11 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/policy", post(predict::policy))
         .route("/v1/plan", post(plan::plan))
         .route("/v1/simulate", post(simulate::simulate))
+        .route("/v1/trees/urdf", post(scene::tree_from_urdf))
+        .route("/v1/trees/example", get(scene::example_tree))
+        .route("/v1/robot/link-poses", post(scene::link_poses))
+        .route("/viewer", get(viewer::index))
+        .route("/viewer/{*file}", get(viewer::asset))
         .route("/v2", get(v2::server_metadata))
         .route("/v2/health/live", get(v2::live))
         .route("/v2/health/ready", get(v2::ready))

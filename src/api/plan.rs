@@ -125,12 +125,13 @@ fn invalid(field: &str, message: impl Into<String>) -> ApiError {
     ApiError::invalid_argument(message).with_details(json!({ "field": field }))
 }
 
-fn joints(values: &[f64]) -> Result<[f64; 6], ApiError> {
+/// A joint configuration (rad) given in `field`.
+pub(super) fn joints(values: &[f64], field: &str) -> Result<[f64; 6], ApiError> {
     let q = <[f64; 6]>::try_from(values).map_err(|_| {
         invalid(
-            "robot.start",
+            field,
             format!(
-                "`robot.start` must have 6 joint angles, it has {}",
+                "`{field}` must have 6 joint angles, it has {}",
                 values.len()
             ),
         )
@@ -140,15 +141,15 @@ fn joints(values: &[f64]) -> Result<[f64; 6], ApiError> {
         .all(|v| v.is_finite() && v.abs() <= 2.0 * std::f64::consts::TAU)
     {
         return Err(invalid(
-            "robot.start",
-            "`robot.start` must be finite angles within ±4π rad",
+            field,
+            format!("`{field}` must be finite angles within ±4π rad"),
         ));
     }
     Ok(q)
 }
 
 /// A point within [`MAX_DISTANCE`] of the root.
-fn near_point(values: &[f64], field: &str) -> Result<Point3<f64>, ApiError> {
+pub(super) fn near_point(values: &[f64], field: &str) -> Result<Point3<f64>, ApiError> {
     let v = vector3(values, field)?;
     if v.norm() > MAX_DISTANCE {
         return Err(invalid(
@@ -287,7 +288,12 @@ pub async fn plan(
     }
     let mut query = Query::new(tree, targets);
     query.stance = stance(&request.robot)?;
-    query.start = request.robot.start.as_deref().map(joints).transpose()?;
+    query.start = request
+        .robot
+        .start
+        .as_deref()
+        .map(|q| joints(q, "robot.start"))
+        .transpose()?;
     query.obstacles = obstacles(&request.obstacles)?;
     query.strategy = request.strategy;
     query.budget = Duration::from_secs_f64(budget_ms / 1e3);

@@ -168,6 +168,11 @@ impl Planner {
         Self { arm }
     }
 
+    /// The arm's kinematics and shapes (at its default base).
+    pub fn robot(&self) -> &Ur5 {
+        &self.arm.robot
+    }
+
     fn placed_at(&self, base: &Isometry3<f64>) -> CollisionModel {
         let mut arm = self.arm.clone();
         arm.robot = arm.robot.clone().with_base(*base);

@@ -29,3 +29,4 @@ mod training;
 mod tree_model;
 mod urdf_python;
 mod urdf_roundtrip;
+mod viewer;

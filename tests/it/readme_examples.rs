@@ -70,6 +70,23 @@ fn the_curl_examples_run() {
 }
 
 #[test]
+fn the_viewer_curl_examples_run() {
+    let server = server();
+    let script =
+        block("<!-- curl viewer examples -->", "sh").replace("localhost:8080", &server.addr);
+    let out = Command::new("bash")
+        .args(["-euo", "pipefail", "-c", &script])
+        .output()
+        .expect("bash runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}");
+    assert!(
+        stdout.contains("\"seed\":3") && stdout.contains("\"poses\""),
+        "{stdout}"
+    );
+}
+
+#[test]
 fn the_python_example_runs() {
     let server = server();
     let script = block("<!-- python example -->", "python").replace("localhost:8080", &server.addr);
