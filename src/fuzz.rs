@@ -31,7 +31,14 @@ pub fn npz(data: &[u8]) {
 }
 
 /// The routes a request body is sent to: the first input byte picks one.
-pub const ROUTES: [&str; 4] = ["/v1/forward", "/v1/policy", "/v1/plan", "/v1/simulate"];
+pub const ROUTES: [&str; 6] = [
+    "/v1/forward",
+    "/v1/policy",
+    "/v1/plan",
+    "/v1/simulate",
+    "/v1/trees/urdf",
+    "/v1/robot/link-poses",
+];
 
 /// A request body through the whole router (validation, limits, models on
 /// the embedded backend, the planner with its budget capped at 100 ms). The
