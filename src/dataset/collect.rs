@@ -70,6 +70,10 @@ pub struct SizeStats {
     pub max_displacement: f64,
     pub mean_iterations: f64,
     pub max_kkt_residual: f64,
+    /// Wall-clock time (s); not in `summary.json`, which depends only on
+    /// the configuration (so equal runs, and merged shards, write equal
+    /// files), but printed.
+    #[serde(skip)]
     pub seconds: f64,
 }
 

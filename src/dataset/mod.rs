@@ -4,6 +4,7 @@
 
 pub mod collect;
 pub mod npz;
+pub mod shard;
 
 use nalgebra::Point3;
 use serde::{Deserialize, Serialize};

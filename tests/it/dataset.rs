@@ -370,3 +370,94 @@ fn plan_cli_reports_attempts_and_trajectory_as_json() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("expected 6 comma-separated numbers"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The files of `dir`, name → bytes.
+fn files_of(dir: &std::path::Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .map(|p| {
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            (name, std::fs::read(&p).unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn sharded_collection_merges_into_the_one_run_files_byte_for_byte() {
+    let dir = temp_dir("shards");
+    let settings = [
+        "--seed",
+        "5",
+        "--train-sizes",
+        "11,13",
+        "--train-episodes",
+        "24",
+        "--test-sizes",
+        "10..=13",
+        "--test-episodes",
+        "8",
+        "--trees-per-size",
+        "3",
+    ];
+    let collect = |out: &std::path::Path, extra: &[&str], index: Option<usize>| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_treemanip"));
+        command
+            .args(["dataset", "collect", "--out", out.to_str().unwrap()])
+            .args(settings)
+            .args(extra);
+        if let Some(i) = index {
+            command.env("JOB_COMPLETION_INDEX", i.to_string());
+        }
+        let run = command.output().unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    };
+    let one = dir.join("one");
+    collect(&one, &[], None);
+    // Three shards on three "machines" (directories), the index from
+    // JOB_COMPLETION_INDEX as in an Indexed Job, then merged.
+    let shard_dirs: Vec<_> = (0..3).map(|i| dir.join(format!("shard{i}"))).collect();
+    for (i, d) in shard_dirs.iter().enumerate() {
+        collect(d, &["--shards", "3"], Some(i));
+    }
+    let merged = dir.join("merged");
+    let mut merge = vec!["dataset", "merge", "--out", merged.to_str().unwrap()];
+    for d in &shard_dirs {
+        merge.extend(["--from", d.to_str().unwrap()]);
+    }
+    // With a shard missing, merge refuses and says which.
+    let partial = treemanip(&merge[..merge.len() - 2]);
+    assert!(!partial.status.success());
+    assert!(String::from_utf8_lossy(&partial.stderr).contains("shard 2/3 is missing"));
+    let run = treemanip(&merge);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let (a, b) = (files_of(&one), files_of(&merged));
+    assert_eq!(a.len(), 7, "6 data files and summary.json: {:?}", a.keys());
+    assert_eq!(
+        a.keys().collect::<Vec<_>>(),
+        b.keys().collect::<Vec<_>>(),
+        "same files"
+    );
+    for (name, bytes) in &a {
+        assert!(bytes == &b[name], "{name} differs");
+    }
+    // A shard index out of range is refused.
+    let bad = treemanip(&[
+        "dataset",
+        "collect",
+        "--out",
+        one.to_str().unwrap(),
+        "--shard",
+        "3/3",
+    ]);
+    assert!(!bad.status.success());
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -5,8 +5,9 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use treemanip::dataset::collect::{CollectConfig, SizeStats, collect_size};
+use treemanip::dataset::shard::{FileJob, Shard, assign};
 use treemanip::dataset::{Split, read_size_file, write_size_file};
 use treemanip::sim::{ContactModel, GRIP_OFFSET, Hold};
 use treemanip::tree::render::{Arrow, Figure, Layer};
@@ -18,6 +19,9 @@ pub enum DatasetCommand {
     /// Simulate push episodes on generated trees and write one .npz per
     /// split and size (default: the paper's split, 51,000 episodes).
     Collect(CollectArgs),
+    /// Join the shards of a sharded collection (`collect --shard I/N`) into
+    /// one dataset directory: the same files and summary.json as one run.
+    Merge(MergeArgs),
     /// Draw episodes of a dataset file as SVG: the tree before (light) and
     /// after (dark) the push, and the push as a red arrow.
     Render(RenderArgs),
@@ -49,6 +53,26 @@ pub struct CollectArgs {
     /// Contact model: `slot` or `pinned`.
     #[arg(long, default_value = "slot")]
     contact: ContactModel,
+    /// Collect only shard INDEX of COUNT (`0/4`): whole files, balanced
+    /// over the shards, plus `shard-INDEX-of-COUNT.json`; join the shards
+    /// with `dataset merge`.
+    #[arg(long, conflicts_with = "shards")]
+    shard: Option<Shard>,
+    /// Shard count, the index read from JOB_COMPLETION_INDEX (a
+    /// Kubernetes Indexed Job's pods).
+    #[arg(long)]
+    shards: Option<usize>,
+}
+
+#[derive(Args)]
+pub struct MergeArgs {
+    /// The dataset directory to complete (summary.json is written here).
+    #[arg(long)]
+    out: PathBuf,
+    /// Directories holding the shards' files (default: --out itself, as
+    /// when every shard wrote to one shared volume).
+    #[arg(long = "from")]
+    from: Vec<PathBuf>,
 }
 
 #[derive(Args)]
@@ -63,21 +87,46 @@ pub struct RenderArgs {
     out: PathBuf,
 }
 
-#[derive(Serialize)]
+/// `summary.json`: a function of the configuration only (no timings), so
+/// two runs, or a run and its merged shards, write the same bytes.
+#[derive(Clone, Serialize, Deserialize, PartialEq)]
 struct Summary {
-    generator: &'static str,
+    generator: String,
     config: CollectConfig,
     train_episodes: usize,
     test_episodes: usize,
     files: Vec<SizeStats>,
-    seconds: f64,
-    kept_per_second: f64,
+}
+
+/// `shard-I-of-N.json`: one shard's part of the summary, and the whole
+/// collection's file list, so `merge` can check that nothing is missing.
+#[derive(Serialize, Deserialize)]
+struct ShardSummary {
+    shard: Shard,
+    jobs: Vec<FileJob>,
+    summary: Summary,
 }
 
 pub fn run(cmd: DatasetCommand) -> anyhow::Result<()> {
     match cmd {
         DatasetCommand::Collect(args) => collect(args),
+        DatasetCommand::Merge(args) => merge(args),
         DatasetCommand::Render(args) => render(args),
+    }
+}
+
+fn shard_of(args: &CollectArgs) -> anyhow::Result<Option<Shard>> {
+    match (args.shard, args.shards) {
+        (Some(shard), _) => Ok(Some(shard)),
+        (None, None) => Ok(None),
+        (None, Some(count)) => {
+            let index = std::env::var("JOB_COMPLETION_INDEX")
+                .context("--shards needs JOB_COMPLETION_INDEX (or give --shard INDEX/COUNT)")?;
+            let index: usize = index
+                .parse()
+                .with_context(|| format!("JOB_COMPLETION_INDEX={index:?} is not an index"))?;
+            Ok(Some(Shard::new(index, count).map_err(anyhow::Error::msg)?))
+        }
     }
 }
 
@@ -88,9 +137,10 @@ fn collect(args: CollectArgs) -> anyhow::Result<()> {
         contact: args.contact,
         ..CollectConfig::default()
     };
+    let shard = shard_of(&args)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let jobs: Vec<(Split, usize, usize)> = args
+    let all: Vec<FileJob> = args
         .train_sizes
         .0
         .iter()
@@ -102,41 +152,172 @@ fn collect(args: CollectArgs) -> anyhow::Result<()> {
                 .map(|&n| (Split::Test, n, args.test_episodes)),
         )
         .filter(|job| job.2 > 0)
+        .map(|(split, n, episodes)| FileJob { split, n, episodes })
         .collect();
-    let total: usize = jobs.iter().map(|j| j.2).sum();
-    if total == 0 {
+    if all.is_empty() {
         bail!("nothing to collect: every split has 0 episodes");
     }
+    let mine: Vec<FileJob> = match shard {
+        None => all.clone(),
+        Some(shard) => all
+            .iter()
+            .zip(assign(&all, shard.count))
+            .filter(|&(_, s)| s == shard.index)
+            .map(|(j, _)| *j)
+            .collect(),
+    };
+    let total: usize = mine.iter().map(|j| j.episodes).sum();
     let bar = crate::progress::bar(total as u64, "episodes");
     let start = Instant::now();
     let mut files = Vec::new();
-    for (split, n, episodes) in jobs {
-        bar.set_message(split.file_name(n));
-        let (data, stats) = collect_size(split, n, episodes, &config, &|| bar.inc(1))
-            .with_context(|| format!("collecting {}", split.file_name(n)))?;
-        let path = args.out.join(split.file_name(n));
-        write_size_file(&data, &path)?;
+    for job in &mine {
+        let name = job.split.file_name(job.n);
+        bar.set_message(name.clone());
+        let (data, stats) = collect_size(job.split, job.n, job.episodes, &config, &|| bar.inc(1))
+            .with_context(|| format!("collecting {name}"))?;
+        write_size_file(&data, &args.out.join(&name))?;
         files.push(stats);
     }
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
     let summary = Summary {
-        generator: concat!("treemanip ", env!("CARGO_PKG_VERSION")),
+        generator: concat!("treemanip ", env!("CARGO_PKG_VERSION")).to_owned(),
         config,
         train_episodes: args.train_episodes,
         test_episodes: args.test_episodes,
-        kept_per_second: total as f64 / seconds,
         files,
-        seconds,
     };
-    std::fs::write(
-        args.out.join("summary.json"),
-        serde_json::to_string_pretty(&summary)?,
-    )?;
     print_summary(&summary);
     println!(
-        "wrote {} files and summary.json to {}",
-        summary.files.len(),
+        "{total} episodes in {seconds:.1} s ({:.0} kept episodes/s)",
+        total as f64 / seconds
+    );
+    let written = match shard {
+        None => write_json(&args.out.join("summary.json"), &summary)?,
+        Some(shard) => {
+            if summary.files.is_empty() {
+                println!("shard {shard} has no file to collect (more shards than files)");
+            }
+            write_json(
+                &args.out.join(shard.file_name()),
+                &ShardSummary {
+                    shard,
+                    jobs: all,
+                    summary,
+                },
+            )?
+        }
+    };
+    println!(
+        "wrote {} files and {} to {}",
+        mine.len(),
+        written,
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// Writes `value` as pretty JSON; returns the file's name.
+fn write_json(path: &std::path::Path, value: &impl Serialize) -> anyhow::Result<String> {
+    std::fs::write(path, serde_json::to_string_pretty(value)? + "\n")
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(path
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_default())
+}
+
+fn merge(args: MergeArgs) -> anyhow::Result<()> {
+    let sources = if args.from.is_empty() {
+        vec![args.out.clone()]
+    } else {
+        args.from.clone()
+    };
+    // Every shard summary in the sources, with the directory holding it.
+    let mut shards: Vec<(PathBuf, ShardSummary)> = Vec::new();
+    for dir in &sources {
+        let entries =
+            std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))?;
+        for entry in entries {
+            let path = entry?.path();
+            let name = path.file_name().unwrap_or_default().to_string_lossy();
+            if name.starts_with("shard-") && name.ends_with(".json") {
+                let text = std::fs::read_to_string(&path)?;
+                let shard: ShardSummary = serde_json::from_str(&text)
+                    .with_context(|| format!("{} is not a shard summary", path.display()))?;
+                shards.push((dir.clone(), shard));
+            }
+        }
+    }
+    let Some((_, first)) = shards.first() else {
+        bail!("no shard-*.json in {sources:?}: run `dataset collect --shard I/N` first");
+    };
+    let count = first.shard.count;
+    let jobs = first.jobs.clone();
+    for (dir, s) in &shards {
+        if s.shard.count != count
+            || s.jobs != jobs
+            || s.summary.config != first.summary.config
+            || s.summary.train_episodes != first.summary.train_episodes
+            || s.summary.test_episodes != first.summary.test_episodes
+        {
+            bail!(
+                "{}/{} belongs to another collection than shard {} (different settings or count)",
+                dir.display(),
+                s.shard.file_name(),
+                first.shard
+            );
+        }
+    }
+    for index in 0..count {
+        match shards
+            .iter()
+            .filter(|(_, s)| s.shard.index == index)
+            .count()
+        {
+            1 => {}
+            0 => bail!("shard {index}/{count} is missing"),
+            k => bail!("shard {index}/{count} appears {k} times"),
+        }
+    }
+    std::fs::create_dir_all(&args.out)?;
+    // The files in the one-run order, each copied from its shard's
+    // directory when that is not --out.
+    let mut files = Vec::new();
+    for job in &jobs {
+        let (dir, stats) = shards
+            .iter()
+            .find_map(|(dir, s)| {
+                s.summary
+                    .files
+                    .iter()
+                    .find(|f| f.split == job.split && f.n == job.n)
+                    .map(|f| (dir, f))
+            })
+            .with_context(|| format!("no shard collected {}", job.split.file_name(job.n)))?;
+        let name = job.split.file_name(job.n);
+        let (from, to) = (dir.join(&name), args.out.join(&name));
+        if !from.exists() {
+            bail!(
+                "{} is missing (its shard's summary lists it)",
+                from.display()
+            );
+        }
+        if from != to {
+            std::fs::copy(&from, &to)
+                .with_context(|| format!("copying {} to {}", from.display(), to.display()))?;
+        }
+        files.push(stats.clone());
+    }
+    let summary = Summary {
+        files,
+        ..first.summary.clone()
+    };
+    write_json(&args.out.join("summary.json"), &summary)?;
+    print_summary(&summary);
+    println!(
+        "merged {count} shards ({} files) into {}",
+        jobs.len(),
         args.out.display()
     );
     Ok(())
@@ -172,10 +353,8 @@ fn print_summary(summary: &Summary) {
     let kept: usize = summary.files.iter().map(|s| s.kept).sum();
     let discarded: usize = summary.files.iter().map(|s| s.discarded_total()).sum();
     println!(
-        "{kept} episodes kept, {discarded} pushes discarded ({:.1} %), {:.1} s, {:.0} kept episodes/s",
+        "{kept} episodes kept, {discarded} pushes discarded ({:.1} %)",
         100.0 * discarded as f64 / (kept + discarded).max(1) as f64,
-        summary.seconds,
-        summary.kept_per_second
     );
 }
 
