@@ -1,40 +1,45 @@
-# treemanip-server with the committed models on native ONNX Runtime.
-#   docker build -t treemanip .
+# treemanip-server with the committed models on native ONNX Runtime, and the
+# `treemanip` CLI (for batch work such as the sharded dataset Job).
+#   docker build -t treemanip .            (or: podman build --format docker -t treemanip .)
 #   docker run -p 8080:8080 treemanip
-# scripts/container-smoke checks the runtime stage's layout without Docker.
+# scripts/container-test builds and runs this file for real with podman,
+# making the three base images locally when no registry can be reached.
 
-# 1. The release binary.
-FROM rust:1.95-bookworm AS build
+# 1. The release binaries (stripped). ONNX Runtime comes from stage 2, so the
+#    server binary need not embed its own copy.
+FROM docker.io/library/rust:1.95-bookworm AS build
 WORKDIR /src
 COPY Cargo.toml Cargo.lock build.rs openapi.yaml ./
 COPY scripts/fetch-onnxruntime scripts/fetch-onnxruntime
 COPY src src
 COPY benches benches
 COPY assets assets
-# The runtime stage loads ONNX Runtime from ORT_DYLIB_PATH, so the binary
-# need not carry its own copy.
-ENV TREEMANIP_EMBED_ORT=0
-RUN cargo build --release --locked --bin treemanip-server
+ENV TREEMANIP_EMBED_ORT=0 CARGO_PROFILE_RELEASE_STRIP=true
+RUN --mount=type=cache,target=/usr/local/cargo/registry \
+    --mount=type=cache,target=/src/target \
+    cargo build --release --locked --bin treemanip-server --bin treemanip \
+ && mkdir -p /out \
+ && cp target/release/treemanip-server target/release/treemanip /out/
 
 # 2. ONNX Runtime's shared library from PyPI's onnxruntime wheel.
-FROM python:3.11-slim AS onnxruntime
+FROM docker.io/library/python:3.11-slim AS onnxruntime
 COPY scripts/fetch-onnxruntime /usr/local/bin/fetch-onnxruntime
 RUN fetch-onnxruntime /opt/onnxruntime
 
-# 3. Runtime: glibc, libstdc++, curl for the health check; no toolchain.
-FROM debian:bookworm-slim
-RUN apt-get update \
- && apt-get install -y --no-install-recommends ca-certificates curl libstdc++6 \
- && rm -rf /var/lib/apt/lists/* \
- && useradd --system --uid 10001 --no-create-home --shell /usr/sbin/nologin treemanip
-COPY --from=build /src/target/release/treemanip-server /usr/local/bin/treemanip-server
+# 3. Runtime: Debian slim (glibc, libstdc++) and our files; no toolchain, no
+#    shell tools added. The health check is the server binary itself.
+FROM docker.io/library/debian:bookworm-slim
+RUN useradd --system --uid 10001 --no-create-home --shell /usr/sbin/nologin treemanip
+COPY --from=build /out/treemanip-server /out/treemanip /usr/local/bin/
 COPY --from=onnxruntime /opt/onnxruntime/libonnxruntime.so.1.31.1 /opt/onnxruntime/libonnxruntime.so.1.31.1
-COPY models /app/models
+COPY models/*.onnx /app/models/
 ENV ORT_DYLIB_PATH=/opt/onnxruntime/libonnxruntime.so.1.31.1
 ENV TREEMANIP_MODELS_DIR=/app/models
 ENV TREEMANIP_BIND=0.0.0.0:8080
 ENV TREEMANIP_LOG_FORMAT=json
 USER 10001
+WORKDIR /tmp
 EXPOSE 8080
-HEALTHCHECK --interval=30s --timeout=3s --start-period=10s CMD curl -fsS http://127.0.0.1:8080/healthz || exit 1
+STOPSIGNAL SIGTERM
+HEALTHCHECK --interval=10s --timeout=3s --start-period=5s --retries=3 CMD ["/usr/local/bin/treemanip-server", "--health-check"]
 ENTRYPOINT ["/usr/local/bin/treemanip-server"]

@@ -15,6 +15,7 @@ pub mod json;
 pub mod metrics;
 pub mod plan;
 pub mod predict;
+pub mod probe;
 pub mod scene;
 pub mod shutdown;
 pub mod simulate;

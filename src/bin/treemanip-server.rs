@@ -63,6 +63,11 @@ struct Args {
     /// request. Never in production.
     #[arg(long, hide = true)]
     fault_injection: bool,
+    /// Check the health of the server listening on --bind (GET /healthz on
+    /// loopback) and exit 0 if it answers 200, 1 otherwise: the container
+    /// image's HEALTHCHECK, which needs no curl.
+    #[arg(long)]
+    health_check: bool,
     /// Log format.
     #[arg(long, env = "TREEMANIP_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
     log_format: LogFormat,
@@ -84,6 +89,19 @@ static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
+    if args.health_check {
+        let addr = api::probe::loopback_for(args.bind);
+        match api::probe::check(addr, std::time::Duration::from_secs(2)) {
+            Ok(()) => {
+                println!("healthy: {addr}");
+                return Ok(());
+            }
+            Err(why) => {
+                eprintln!("unhealthy: {why}");
+                std::process::exit(1);
+            }
+        }
+    }
     // The blocking pool runs the CPU work, at most --max-in-flight jobs at
     // once (the admission limit), so it needs no more threads than that
     // (tokio's default allows 512); they are kept, not re-spawned after

@@ -6,6 +6,7 @@ mod batching;
 mod cli_trees;
 mod common;
 mod dataset;
+mod deploy;
 mod fuzz_corpus;
 mod graph_encoding;
 mod oip_v2;
