@@ -3,3 +3,4 @@
 pub mod learned;
 pub mod plan;
 pub mod plots;
+pub mod ranks;

@@ -119,3 +119,134 @@ pub fn error_by_size_svg(
     root.present()?;
     Ok(())
 }
+
+/// The paper's Fig. 8 (left): error left after executing each rank's
+/// action, mean over episodes of the largest and of the mean node
+/// distance, with No Action's as dashed lines, in cm.
+pub fn error_by_rank_svg(
+    rows: &[crate::eval::ranks::RankSummary],
+    no_action: (f64, f64),
+    title: &str,
+    path: &Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let ranks = rows.len().max(1);
+    let top = rows.iter().map(|r| r.max_error).fold(no_action.0, f64::max) * 100.0 * 1.15;
+    let root = SVGBackend::new(path, (760, 460)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0.5..ranks as f64 + 0.5, 0.0..top)?;
+    chart
+        .configure_mesh()
+        .x_desc("affordance rank of the executed action")
+        .y_desc("error to the target after the push (cm)")
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .x_labels(ranks)
+        .disable_x_mesh()
+        .draw()?;
+    let series = [
+        ("max node error", RGBColor(214, 96, 77), no_action.0, true),
+        (
+            "mean node error",
+            RGBColor(58, 110, 165),
+            no_action.1,
+            false,
+        ),
+    ];
+    for (label, color, none, is_max) in series {
+        let points: Vec<(f64, f64)> = rows
+            .iter()
+            .map(|r| {
+                let e = if is_max { r.max_error } else { r.mean_error };
+                (r.rank as f64, 100.0 * e)
+            })
+            .collect();
+        chart
+            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?
+            .label(label)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+        chart.draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))?;
+        chart
+            .draw_series(DashedLineSeries::new(
+                vec![(0.5, 100.0 * none), (ranks as f64 + 0.5, 100.0 * none)],
+                6,
+                4,
+                color.stroke_width(1),
+            ))?
+            .label(format!("{label}, no action"))
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(1))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::LowerRight)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+/// The paper's Fig. 8 (right): the affordance score's distribution per
+/// rank on a log scale (scores span many decades): the 10-90 % range as a
+/// bar, the median as a tick, the mean as a dot; scores below 1e-6 are
+/// drawn at 1e-6.
+pub fn affordance_by_rank_svg(
+    rows: &[crate::eval::ranks::RankSummary],
+    title: &str,
+    path: &Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let ranks = rows.len().max(1);
+    const FLOOR: f64 = 1e-6;
+    let at = |v: f64| v.max(FLOOR);
+    let root = SVGBackend::new(path, (760, 460)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0.5..ranks as f64 + 0.5, (FLOOR..1.5).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("affordance rank")
+        .y_desc("affordance score (share over the tree's nodes, log)")
+        .y_label_formatter(&|y| format!("{y:.0e}"))
+        .x_label_formatter(&|x| format!("{x:.0}"))
+        .x_labels(ranks)
+        .disable_x_mesh()
+        .draw()?;
+    let blue = RGBColor(58, 110, 165);
+    chart.draw_series(rows.iter().map(|r| {
+        let x = r.rank as f64;
+        Rectangle::new(
+            [
+                (x - 0.3, at(r.affordance_p10)),
+                (x + 0.3, at(r.affordance_p90)),
+            ],
+            blue.mix(0.35).filled(),
+        )
+    }))?;
+    chart.draw_series(rows.iter().map(|r| {
+        let x = r.rank as f64;
+        PathElement::new(
+            vec![
+                (x - 0.3, at(r.affordance_p50)),
+                (x + 0.3, at(r.affordance_p50)),
+            ],
+            blue.stroke_width(2),
+        )
+    }))?;
+    chart.draw_series(
+        rows.iter()
+            .map(|r| Circle::new((r.rank as f64, at(r.affordance_mean)), 3, BLACK.filled())),
+    )?;
+    root.present()?;
+    Ok(())
+}

@@ -241,3 +241,55 @@ fn obstacles_are_respected_and_named() {
     q.obstacles = vec![wall];
     assert!(planner.plan(&q, policy, Some(forward)).is_err());
 }
+
+/// `treemanip eval ranks` (the paper's Fig. 8) on a few episodes: every
+/// rank is executed, the policy's first choice beats doing nothing, and
+/// the figures are written.
+#[test]
+fn eval_ranks_executes_every_rank() {
+    let out = crate::common::temp_dir("ranks");
+    let run = crate::common::treemanip(&[
+        "eval",
+        "ranks",
+        "--n",
+        "10",
+        "--episodes",
+        "6",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("rank_eval.json")).unwrap())
+            .unwrap();
+    let ranks = json["ranks"].as_array().unwrap();
+    assert_eq!(
+        ranks.len(),
+        9,
+        "every non-root node of a 10-node tree is ranked"
+    );
+    assert!(ranks.iter().all(|r| r["episodes"] == 6));
+    let first = ranks[0]["max_error"].as_f64().unwrap();
+    let none = json["no_action"]["max_error"].as_f64().unwrap();
+    assert!(
+        first < 0.5 * none,
+        "rank 1 leaves {first} m, no action {none} m"
+    );
+    let affordance: Vec<f64> = ranks
+        .iter()
+        .map(|r| r["affordance_mean"].as_f64().unwrap())
+        .collect();
+    assert!(
+        affordance.windows(2).all(|w| w[0] >= w[1] - 1e-12),
+        "{affordance:?}"
+    );
+    for figure in ["fig8_error_by_rank.svg", "fig8_affordance_by_rank.svg"] {
+        let svg = std::fs::read_to_string(out.join(figure)).unwrap();
+        assert!(svg.contains("<svg") && svg.contains("rank"), "{figure}");
+    }
+    std::fs::remove_dir_all(&out).ok();
+}

@@ -6,6 +6,7 @@ mod dataset;
 mod learn;
 mod plan;
 mod progress;
+mod ranks;
 mod sim;
 mod trees;
 
@@ -53,6 +54,9 @@ enum EvalCommand {
     /// Algorithm 1 on test episodes of every size: success rate, planned
     /// rank histogram (the paper's Fig. 10), planning times.
     Plan(plan::EvalPlanArgs),
+    /// Every rank of the contact policy executed (arm ignored): error and
+    /// affordance by rank (the paper's Fig. 8).
+    Ranks(ranks::EvalRanksArgs),
     /// Forward models (GNN, PointNet, No Action) on the test split: e_N per
     /// tree size (the paper's Fig. 7, left).
     Forward(learn::EvalLearnedArgs),
@@ -71,6 +75,7 @@ fn main() -> std::process::ExitCode {
         Command::Domain(args) => learn::domain_cmd(args),
         Command::Plan(args) => plan::plan(args),
         Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
+        Command::Eval(EvalCommand::Ranks(args)) => ranks::eval_ranks(args),
         Command::Eval(EvalCommand::Forward(args)) => {
             learn::eval_learned(treemanip::graph::Task::Forward, args)
         }

@@ -71,7 +71,7 @@ pub struct PlanArgs {
 }
 
 /// The GNN policy and forward model from a models directory.
-fn load_models(dir: &std::path::Path) -> anyhow::Result<ModelSet> {
+pub(crate) fn load_models(dir: &std::path::Path) -> anyhow::Result<ModelSet> {
     let set = ModelSet::load_dir(dir, None, rayon::current_num_threads(), false)
         .with_context(|| format!("cannot load the models in {}", dir.display()))?;
     for name in ["policy_gnn", "forward_gnn"] {
@@ -82,7 +82,7 @@ fn load_models(dir: &std::path::Path) -> anyhow::Result<ModelSet> {
     Ok(set)
 }
 
-fn gnns(set: &ModelSet) -> (&ServedModel, &ServedModel) {
+pub(crate) fn gnns(set: &ModelSet) -> (&ServedModel, &ServedModel) {
     (
         set.get("policy_gnn").expect("checked on load"),
         set.get("forward_gnn").expect("checked on load"),
