@@ -17,6 +17,7 @@ pub mod plan;
 pub mod predict;
 pub mod probe;
 pub mod scene;
+pub mod server;
 pub mod shutdown;
 pub mod simulate;
 pub mod timing;

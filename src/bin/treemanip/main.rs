@@ -47,6 +47,9 @@ enum Command {
     /// Evaluate components the way the paper does.
     #[command(subcommand)]
     Eval(EvalCommand),
+    /// Run the HTTP service (the same as `treemanip-server`; the container
+    /// image's entry point).
+    Serve(treemanip::api::server::ServeArgs),
 }
 
 #[derive(Subcommand)]
@@ -74,6 +77,7 @@ fn main() -> std::process::ExitCode {
         Command::Export(args) => learn::export_cmd(args),
         Command::Domain(args) => learn::domain_cmd(args),
         Command::Plan(args) => plan::plan(args),
+        Command::Serve(args) => treemanip::api::server::run(args),
         Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
         Command::Eval(EvalCommand::Ranks(args)) => ranks::eval_ranks(args),
         Command::Eval(EvalCommand::Forward(args)) => {

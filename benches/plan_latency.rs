@@ -1,0 +1,97 @@
+//! `/v1/plan` latency against the running server on the default backend:
+//! one request at a time (the latency one user sees), on test episodes of
+//! N = 10, 15, …, 30 (target = the episode's final shape, the request
+//! carries only tree and target), for `paper`, `model` and `physics`, with
+//! the default base and with the evaluation's base region, default budgets.
+//!
+//!     cargo bench --bench plan_latency
+//!     PLAN_EPISODES=4 cargo bench --bench plan_latency     (per size)
+//!
+//! Prints p50/p95/max client-side latency and the planned share; asserts
+//! nothing. Run with nothing else busy on the machine.
+
+use std::time::Instant;
+
+use serde_json::{Value, json};
+use treemanip::api::tree_json::TreeJson;
+use treemanip::dataset::Split;
+use treemanip::dataset::collect::{CollectConfig, collect_size};
+
+#[allow(dead_code)] // the bench uses part of the tests' helper
+#[path = "../tests/it/common/server.rs"]
+mod server;
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+fn main() {
+    let per_size: usize = std::env::var("PLAN_EPISODES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(8);
+    let server = server::Server::start(&[
+        "--models-dir",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/models"),
+    ]);
+    let (_, ready) = server.get("/readyz");
+    let cpu = treemanip::nn::train::checkpoint::cpu_model();
+    println!(
+        "/v1/plan latency, backend {}, CPU {cpu}, {} cores; {per_size} test episodes per size, N = 10, 15, 20, 25, 30, one request at a time",
+        ready["backend"],
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
+    let config = CollectConfig {
+        seed: 7,
+        ..CollectConfig::default()
+    };
+    let mut requests: Vec<Value> = Vec::new();
+    for n in [10, 15, 20, 25, 30] {
+        let (data, _) = collect_size(Split::Test, n, per_size, &config, &|| {}).unwrap();
+        for e in &data.episodes {
+            let tree = data.tree_of(e);
+            let targets: Vec<[f64; 3]> =
+                e.final_positions.iter().map(|p| [p.x, p.y, p.z]).collect();
+            requests
+                .push(json!({ "tree": TreeJson::from_tree(tree), "target_positions": targets }));
+        }
+    }
+    let base = treemanip::robot::ur5::default_base().translation.vector;
+    let region = json!({ "base_region": {
+        "min": [base.x - 0.5, base.y - 0.5, 0.1], "max": [base.x + 0.5, base.y + 0.5, 1.0] } });
+    println!(
+        "{:<16} {:>8} {:>9} {:>9} {:>9} {:>9}",
+        "setting", "planned", "p50 ms", "p95 ms", "max ms", "mean ms"
+    );
+    for strategy in ["paper", "model", "physics"] {
+        for (stance, robot) in [("fixed", None), ("region", Some(&region))] {
+            let mut ms = Vec::new();
+            let mut planned = 0;
+            for request in &requests {
+                let mut body = request.clone();
+                body["strategy"] = json!(strategy);
+                if let Some(robot) = robot {
+                    body["robot"] = robot.clone();
+                }
+                let started = Instant::now();
+                let (status, answer) = server.json("POST", "/v1/plan", &body);
+                ms.push(started.elapsed().as_secs_f64() * 1e3);
+                assert_eq!(status, 200, "{answer}");
+                planned += usize::from(answer["status"] == "planned");
+            }
+            ms.sort_by(f64::total_cmp);
+            println!(
+                "{:<16} {:>7.0}% {:>9.1} {:>9.1} {:>9.1} {:>9.1}",
+                format!("{strategy}/{stance}"),
+                100.0 * planned as f64 / requests.len() as f64,
+                percentile(&ms, 0.5),
+                percentile(&ms, 0.95),
+                ms.last().copied().unwrap_or(f64::NAN),
+                ms.iter().sum::<f64>() / ms.len() as f64
+            );
+        }
+    }
+}
