@@ -1,7 +1,7 @@
 //! Collision checking of the arm against the tree, the ground and itself,
 //! with parry3d's exact shape queries behind an axis-aligned bounding-box
 //! prefilter (one configuration against a 30-node tree costs about 1 µs;
-//! capsule pairs use a closed form, see [`capsules_intersect`]).
+//! capsule pairs in closed form).
 //!
 //! Shapes: each arm link's capsule and the gripper's boxes (from the URDF),
 //! each tree branch as a capsule of its radius from parent to child node, and
@@ -487,7 +487,7 @@ mod tests {
     #[test]
     fn capsule_fast_path_matches_parry() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let mut point = |rng: &mut rand_chacha::ChaCha8Rng| {
+        let point = |rng: &mut rand_chacha::ChaCha8Rng| {
             Vec3::new(
                 rng.random_range(-0.3..0.3),
                 rng.random_range(-0.3..0.3),
