@@ -250,8 +250,15 @@ pub fn rrt_star(
                 stack.extend(nodes[k].children.iter().copied());
             }
         }
+        // A goal edge that cannot beat the best path found yet is not
+        // checked (the edge check is most of an iteration's time).
+        let best_cost = best(&nodes, &goal_links).map_or(f64::INFINITY, |b| b.0);
         for (g, (_, goal)) in goals.iter().enumerate() {
-            if distance(&new_q, goal) <= options.max_step && validator.edge_valid(&new_q, goal) {
+            let d = distance(&new_q, goal);
+            if d <= options.max_step
+                && nodes[new].cost + d < best_cost
+                && validator.edge_valid(&new_q, goal)
+            {
                 goal_links.push((new, g));
             }
         }
