@@ -251,6 +251,8 @@ struct ShapeSlot {
     shape: LinkShape,
     gripper: bool,
     base: bool,
+    /// Which joints move this shape.
+    moved_by: [bool; 6],
 }
 
 /// The arm's collision geometry and which link pairs to test for
@@ -284,6 +286,7 @@ impl CollisionModel {
                     // past the palm face, so it shares the gripper's allowance.
                     gripper: name.starts_with("gripper_") || name == "wrist_3_link",
                     base: name == "base_link_inertia",
+                    moved_by: std::array::from_fn(|i| robot.moved_by(link, i)),
                 });
             }
         }
@@ -332,6 +335,45 @@ impl CollisionModel {
                 LinkShape::Box { .. } => None,
             })
             .collect()
+    }
+
+    /// R_i(q) for each joint i: the largest distance from joint i's axis
+    /// of any point of a shape it moves, each shape grown by `margin`. A
+    /// rotation Δq_i moves no such point farther than R_i |Δq_i|; the
+    /// planning scene spaces its edge checks by it.
+    pub fn axis_reach(&self, q: &[f64; 6], margin: f64) -> [f64; 6] {
+        let poses = self.robot.link_poses(q);
+        let axes = self.robot.joint_axes(&poses);
+        let from_axis = |i: usize, p: &Point3<f64>| {
+            let (o, d) = &axes[i];
+            let v = p - o;
+            (v - d * v.dot(d)).norm()
+        };
+        let mut reach = [0.0f64; 6];
+        for slot in &self.shapes {
+            let pose = poses[slot.link];
+            // Points that bound the shape, and how far the shape reaches
+            // beyond them.
+            let (points, pad): (Vec<Point3<f64>>, f64) = match &slot.shape {
+                LinkShape::Capsule { a, b, radius } => (
+                    vec![pose * Point3::from(*a), pose * Point3::from(*b)],
+                    radius + margin,
+                ),
+                LinkShape::Box {
+                    centre,
+                    half_extents,
+                } => (
+                    vec![pose * centre * Point3::origin()],
+                    half_extents.norm() + margin,
+                ),
+            };
+            for i in (0..6).filter(|&i| slot.moved_by[i]) {
+                for p in &points {
+                    reach[i] = reach[i].max(from_axis(i, p) + pad);
+                }
+            }
+        }
+        reach
     }
 
     /// Link names of the self-collision pairs that are checked.

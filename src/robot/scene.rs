@@ -55,9 +55,22 @@ impl<'a> PlanningScene<'a> {
             .check_with_margin(q, self.obstacles, &self.allowed, self.resolution / 2.0)
     }
 
-    /// Number of intervals an edge is checked in.
+    /// Number of intervals an edge is checked in: the sweep Σ_i R_i |Δq_i|
+    /// over the resolution, with R_i joint i's reach at `a`
+    /// ([`CollisionModel::axis_reach`]) plus how far the joints beyond it
+    /// can carry a point away from its axis during the edge
+    /// (Σ_{j>i} R_j^max |Δq_j|, with [`LEVER_ARMS`] as R^max), never more
+    /// than the configuration-free bound. Joints before i move a point and
+    /// joint i's axis together, so they do not change that distance.
     pub fn edge_intervals(&self, a: &Config, b: &Config) -> usize {
-        let sweep: f64 = (0..6).map(|i| LEVER_ARMS[i] * (b[i] - a[i]).abs()).sum();
+        let dq: [f64; 6] = std::array::from_fn(|i| (b[i] - a[i]).abs());
+        let reach = self.model.axis_reach(a, self.resolution / 2.0);
+        let sweep: f64 = (0..6)
+            .map(|i| {
+                let drift: f64 = (i + 1..6).map(|j| LEVER_ARMS[j] * dq[j]).sum();
+                (reach[i] + drift).min(LEVER_ARMS[i]) * dq[i]
+            })
+            .sum();
         (sweep / self.resolution).ceil().max(1.0) as usize
     }
 }

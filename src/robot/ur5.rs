@@ -524,6 +524,34 @@ impl Ur5 {
         poses
     }
 
+    /// Each joint's axis in the world at `poses` (from [`Self::link_poses`]):
+    /// a point on it and its unit direction.
+    pub fn joint_axes(&self, poses: &[Isometry3<f64>]) -> [(Point3<f64>, Vector3<f64>); 6] {
+        let mut axes = [(Point3::origin(), Vector3::z()); 6];
+        for (l, link) in self.links.iter().enumerate() {
+            if let Some((i, axis)) = &link.joint {
+                axes[*i] = (
+                    poses[l] * Point3::origin(),
+                    poses[l].rotation * axis.into_inner(),
+                );
+            }
+        }
+        axes
+    }
+
+    /// Whether joint `joint` moves link `link` (the link it drives, or one
+    /// further down the chain).
+    pub fn moved_by(&self, link: usize, joint: usize) -> bool {
+        let mut k = Some(link);
+        while let Some(l) = k {
+            if self.links[l].joint.is_some_and(|(i, _)| i == joint) {
+                return true;
+            }
+            k = self.links[l].parent;
+        }
+        false
+    }
+
     pub fn link_names(&self) -> impl Iterator<Item = &str> {
         self.links.iter().map(|l| l.name.as_str())
     }
