@@ -134,6 +134,32 @@ fn main() {
         percentile(&mut times, 0.95),
         percentile(&mut costs, 0.5)
     );
+    // Where an RRT* query's time goes: configuration checks, by caller.
+    let counting = Counting {
+        scene: &scene,
+        configs: Default::default(),
+        edges: Default::default(),
+        edge_configs: Default::default(),
+    };
+    let mut iterations = 0;
+    for seed in 0..runs {
+        let options = RrtStarOptions {
+            seed,
+            time_budget: Some(Duration::from_secs(2)),
+            ..RrtStarOptions::default()
+        };
+        if let Ok(p) = rrt_star(&start, &[goal], &counting, &options) {
+            iterations += p.stats.iterations;
+        }
+    }
+    let per = |c: &std::cell::Cell<usize>| c.get() as f64 / runs as f64;
+    println!(
+        "  per query (mean): {:.0} iterations, {:.0} sampled configurations checked, {:.0} edges checked (spanning up to {:.0} configurations; a blocked edge stops early)",
+        iterations as f64 / runs as f64,
+        per(&counting.configs),
+        per(&counting.edges),
+        per(&counting.edge_configs)
+    );
     let mut times = Vec::new();
     let mut costs = Vec::new();
     let mut invalid = 0;
@@ -176,4 +202,26 @@ fn main() {
         percentile(&mut times, 0.95),
         percentile(&mut costs, 0.5)
     );
+}
+
+/// The scene, counting the checks RRT* asks for.
+struct Counting<'a> {
+    scene: &'a PlanningScene<'a>,
+    configs: std::cell::Cell<usize>,
+    edges: std::cell::Cell<usize>,
+    edge_configs: std::cell::Cell<usize>,
+}
+
+impl MotionValidator for Counting<'_> {
+    fn config_valid(&self, q: &Config) -> bool {
+        self.configs.set(self.configs.get() + 1);
+        self.scene.config_valid(q)
+    }
+
+    fn edge_valid(&self, a: &Config, b: &Config) -> bool {
+        self.edges.set(self.edges.get() + 1);
+        self.edge_configs
+            .set(self.edge_configs.get() + self.scene.edge_intervals(a, b));
+        self.scene.edge_valid(a, b)
+    }
 }
