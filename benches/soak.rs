@@ -99,6 +99,8 @@ fn main() {
     let started = Instant::now();
     let deadline = started + Duration::from_secs_f64(seconds);
     let after_first_minute = std::sync::Mutex::new(None::<u64>);
+    // The resident set every minute: a plateau and a leak look different.
+    let timeline = std::sync::Mutex::new(Vec::<(f64, u64)>::new());
     let results: Vec<(String, u16, f64)> = std::thread::scope(|scope| {
         scope.spawn(|| {
             let minute = started + Duration::from_secs_f64(60f64.min(seconds / 2.0));
@@ -106,6 +108,17 @@ fn main() {
                 std::thread::sleep(Duration::from_millis(200));
             }
             *after_first_minute.lock().unwrap() = Some(rss_kib(pid));
+        });
+        scope.spawn(|| {
+            let mut next = started;
+            while Instant::now() < deadline {
+                if Instant::now() >= next {
+                    let t = started.elapsed().as_secs_f64();
+                    timeline.lock().unwrap().push((t, rss_kib(pid)));
+                    next += Duration::from_secs(60);
+                }
+                std::thread::sleep(Duration::from_millis(200));
+            }
         });
         let handles: Vec<_> = (0..CLIENTS)
             .map(|c| {
@@ -189,4 +202,11 @@ fn main() {
         end_rss as f64 / 1024.0,
         100.0 * (end_rss as f64 - first as f64) / (first as f64).max(1.0)
     );
+    let timeline: Vec<String> = timeline
+        .lock()
+        .unwrap()
+        .iter()
+        .map(|(t, kib)| format!("{:.0} s {:.1}", t, *kib as f64 / 1024.0))
+        .collect();
+    println!("server RSS by minute (MiB): {}", timeline.join(", "));
 }
