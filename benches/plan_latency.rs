@@ -16,17 +16,11 @@ use serde_json::{Value, json};
 use treemanip::api::tree_json::TreeJson;
 use treemanip::dataset::Split;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
+use treemanip::eval::plan::percentile;
 
 #[allow(dead_code)] // the bench uses part of the tests' helper
 #[path = "../tests/it/common/server.rs"]
 mod server;
-
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
-}
 
 fn main() {
     let per_size: usize = std::env::var("PLAN_EPISODES")

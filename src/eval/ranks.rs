@@ -30,7 +30,7 @@ pub struct RankedOutcome {
 }
 
 /// Largest and mean distance between matching points.
-fn errors(a: &[nalgebra::Point3<f64>], b: &[nalgebra::Point3<f64>]) -> (f64, f64) {
+pub fn errors(a: &[nalgebra::Point3<f64>], b: &[nalgebra::Point3<f64>]) -> (f64, f64) {
     let d: Vec<f64> = a.iter().zip(b).map(|(p, q)| (p - q).norm()).collect();
     let max = d.iter().copied().fold(0.0, f64::max);
     (max, d.iter().sum::<f64>() / d.len().max(1) as f64)

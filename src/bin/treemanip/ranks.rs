@@ -8,7 +8,7 @@ use clap::Args;
 use treemanip::dataset::Split;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
 use treemanip::eval::plots::{affordance_by_rank_svg, error_by_rank_svg};
-use treemanip::eval::ranks::{rank_outcomes, summarise, to_markdown};
+use treemanip::eval::ranks::{errors, rank_outcomes, summarise, to_markdown};
 
 use crate::plan::{gnns, load_models};
 
@@ -50,14 +50,9 @@ pub fn eval_ranks(args: EvalRanksArgs) -> anyhow::Result<()> {
     for episode in &data.episodes {
         let tree = data.tree_of(episode);
         outcomes.push(rank_outcomes(policy, tree, episode)?);
-        let d: Vec<f64> = tree
-            .positions()
-            .iter()
-            .zip(&episode.final_positions)
-            .map(|(p, q)| (p - q).norm())
-            .collect();
-        no_action.0 += d.iter().copied().fold(0.0, f64::max);
-        no_action.1 += d.iter().sum::<f64>() / d.len() as f64;
+        let (max, mean) = errors(tree.positions(), &episode.final_positions);
+        no_action.0 += max;
+        no_action.1 += mean;
         bar.inc(1);
     }
     bar.finish_and_clear();
