@@ -113,33 +113,40 @@ fn main() {
     let scene = PlanningScene::new(&model, &fence, Allowed::default());
     let runs = 40;
     println!("\nfence scene, {runs} seeds each (start → goal through a 0.5 m fence)");
-    let mut times = Vec::new();
-    let mut costs = Vec::new();
-    for seed in 0..runs {
-        let options = RrtStarOptions {
-            seed,
-            time_budget: Some(Duration::from_secs(2)),
-            ..RrtStarOptions::default()
-        };
-        let t = Instant::now();
-        if let Ok(p) = rrt_star(&start, &[goal], &scene, &options) {
-            times.push(t.elapsed().as_secs_f64() * 1e3);
-            costs.push(p.cost);
+    let fixed = FixedStep(&scene);
+    for (name, validator) in [
+        ("RRT* (ours)        ", &scene as &dyn MotionValidator),
+        ("RRT* (fixed-step)  ", &fixed as &dyn MotionValidator),
+    ] {
+        let mut times = Vec::new();
+        let mut costs = Vec::new();
+        for seed in 0..runs {
+            let options = RrtStarOptions {
+                seed,
+                time_budget: Some(Duration::from_secs(2)),
+                ..RrtStarOptions::default()
+            };
+            let t = Instant::now();
+            if let Ok(p) = rrt_star(&start, &[goal], validator, &options) {
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+                costs.push(p.cost);
+            }
         }
+        let solved = times.len();
+        println!(
+            "  {name}{solved}/{runs} solved, median {:.2} ms, p95 {:.1} ms, median cost {:.2} rad",
+            percentile(&mut times, 0.5),
+            percentile(&mut times, 0.95),
+            percentile(&mut costs, 0.5)
+        );
     }
-    let solved = times.len();
-    println!(
-        "  RRT* (ours)         {solved}/{runs} solved, median {:.1} ms, p95 {:.1} ms, median cost {:.2} rad",
-        percentile(&mut times, 0.5),
-        percentile(&mut times, 0.95),
-        percentile(&mut costs, 0.5)
-    );
     // Where an RRT* query's time goes: configuration checks, by caller.
     let counting = Counting {
         scene: &scene,
         configs: Default::default(),
         edges: Default::default(),
         edge_configs: Default::default(),
+        edge_poses: Default::default(),
     };
     let mut iterations = 0;
     for seed in 0..runs {
@@ -154,10 +161,11 @@ fn main() {
     }
     let per = |c: &std::cell::Cell<usize>| c.get() as f64 / runs as f64;
     println!(
-        "  per query (mean): {:.0} iterations, {:.0} sampled configurations checked, {:.0} edges checked (spanning up to {:.0} configurations; a blocked edge stops early)",
+        "  per query (mean): {:.0} iterations, {:.0} sampled configurations checked, {:.0} edges checked at {:.0} poses (a fixed step would span {:.0})",
         iterations as f64 / runs as f64,
         per(&counting.configs),
         per(&counting.edges),
+        per(&counting.edge_poses),
         per(&counting.edge_configs)
     );
     let mut times = Vec::new();
@@ -210,6 +218,20 @@ struct Counting<'a> {
     configs: std::cell::Cell<usize>,
     edges: std::cell::Cell<usize>,
     edge_configs: std::cell::Cell<usize>,
+    edge_poses: std::cell::Cell<usize>,
+}
+
+/// The scene with the textbook fixed-step edge check, for comparison.
+struct FixedStep<'a>(&'a PlanningScene<'a>);
+
+impl MotionValidator for FixedStep<'_> {
+    fn config_valid(&self, q: &Config) -> bool {
+        self.0.config_valid(q)
+    }
+
+    fn edge_valid(&self, a: &Config, b: &Config) -> bool {
+        self.0.edge_valid_fixed_step(a, b)
+    }
 }
 
 impl MotionValidator for Counting<'_> {
@@ -222,6 +244,8 @@ impl MotionValidator for Counting<'_> {
         self.edges.set(self.edges.get() + 1);
         self.edge_configs
             .set(self.edge_configs.get() + self.scene.edge_intervals(a, b));
-        self.scene.edge_valid(a, b)
+        let check = self.scene.edge_check(a, b);
+        self.edge_poses.set(self.edge_poses.get() + check.poses);
+        check.free
     }
 }

@@ -97,6 +97,10 @@ impl Query {
 pub const DEFAULT_CANDIDATES: usize = 4;
 /// Pushes executed (push check and RRT*) at most, best predicted first.
 const MAX_EXECUTIONS: usize = 6;
+/// RRT* iterations for a node's approach from a base where an approach to
+/// the same node already found no path: the pre-contact poses of a node's
+/// pushes lie close together, so a second full search rarely succeeds.
+const RETRY_ITERATIONS: usize = 800;
 
 /// One push the planner looked at, and what became of it.
 #[derive(Debug, Clone, Serialize)]
@@ -225,6 +229,7 @@ impl Planner {
             fixed: &fixed,
             clock,
             attempts: Vec::new(),
+            no_path: Vec::new(),
         };
         let no_action_error = max_node_error(tree.positions(), &query.targets);
         let mut evaluations = 0;
@@ -340,6 +345,8 @@ struct Run<'a> {
     fixed: &'a Option<Placed>,
     clock: Instant,
     attempts: Vec<Attempt>,
+    /// (node, base) pairs whose approach RRT* found no path.
+    no_path: Vec<(usize, BasePose)>,
 }
 
 impl Run<'_> {
@@ -423,6 +430,7 @@ impl Run<'_> {
         let tree = &self.query.tree;
         let mut options = PlanOptions::default();
         options.rrt.seed = self.query.seed;
+        let full_iterations = options.rrt.max_iterations;
         let placements = self.placements(push);
         let mut outcome = if placements.is_empty() {
             Outcome::StartInCollision
@@ -439,6 +447,12 @@ impl Run<'_> {
                 break;
             }
             options.rrt.time_budget = options.rrt.time_budget.map(|b| b.min(remaining));
+            let failed_before = self.no_path.contains(&(push.node, placed.pose));
+            options.rrt.max_iterations = if failed_before {
+                RETRY_ITERATIONS.min(full_iterations)
+            } else {
+                full_iterations
+            };
             let goals = match reach(&placed.arm, tree, self.rest, push, &placed.start) {
                 Ok(goals) => goals,
                 Err(o) => {
@@ -461,7 +475,12 @@ impl Run<'_> {
                     outcome = Outcome::Planned;
                     break;
                 }
-                Err(o) => outcome = worst_to_best(outcome, o),
+                Err(o) => {
+                    if o == Outcome::NoPath && !failed_before {
+                        self.no_path.push((push.node, placed.pose));
+                    }
+                    outcome = worst_to_best(outcome, o);
+                }
             }
         }
         let ms = started.elapsed().as_secs_f64() * 1e3;

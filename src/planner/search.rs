@@ -29,6 +29,9 @@ pub struct SearchOptions {
     pub initial_sigma: f64,
     /// Predictions allowed in all (rounds stop early when reached).
     pub max_evaluations: usize,
+    /// A node whose best push so far is predicted this much worse than the
+    /// best of all (m) gets no further rounds: the search would not pick it.
+    pub drop_margin: f64,
     pub seed: u64,
 }
 
@@ -40,6 +43,7 @@ impl Default for SearchOptions {
             elite: 3,
             initial_sigma: 0.03,
             max_evaluations: 96,
+            drop_margin: 0.05,
             seed: 1,
         }
     }
@@ -82,9 +86,16 @@ pub fn search_pushes(
         .collect();
     let mut scored = Vec::new();
     let mut evaluations = 0;
+    // Per seed: the best error predicted so far, and whether it still
+    // gets rounds.
+    let mut best = vec![f64::INFINITY; seeds.len()];
+    let mut active = vec![true; seeds.len()];
     for round in 0..options.rounds {
         let mut round_pushes: Vec<(usize, Push)> = Vec::new();
         for (k, (seed, (mean, sigma))) in seeds.iter().zip(&state).enumerate() {
+            if !active[k] {
+                continue;
+            }
             for i in 0..options.samples {
                 let vector = if round == 0 && i == 0 {
                     *mean // the policy's own push is always a candidate
@@ -141,6 +152,7 @@ pub fn search_pushes(
                 continue;
             }
             round_scores.sort_by(|a, b| a.predicted_error.total_cmp(&b.predicted_error));
+            best[k] = best[k].min(round_scores[0].predicted_error);
             let elite = &round_scores[..options.elite.min(round_scores.len())];
             let mean =
                 elite.iter().map(|s| s.push.vector).sum::<Vector3<f64>>() / elite.len() as f64;
@@ -151,6 +163,12 @@ pub fn search_pushes(
                 / (3.0 * elite.len() as f64))
                 .sqrt();
             state[k] = (mean, spread.max(0.005));
+        }
+        let overall = best.iter().copied().fold(f64::INFINITY, f64::min);
+        for (k, b) in best.iter().enumerate() {
+            if *b > overall + options.drop_margin {
+                active[k] = false;
+            }
         }
         if evaluations >= options.max_evaluations {
             break;

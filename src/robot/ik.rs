@@ -57,7 +57,7 @@ pub fn solve(t06: &Matrix4<f64>, reference: &[f64; 6]) -> Vec<[f64; 6]> {
         theta1s.pop(); // shoulder singularity: one branch
     }
     let p06 = t06.fixed_view::<3, 1>(0, 3);
-    let t60 = t06.try_inverse().expect("rigid transforms invert");
+    let t60 = rigid_inverse(t06);
     for theta1 in theta1s {
         let (s1, c1) = theta1.sin_cos();
         let cos5 = (p06.x * s1 - p06.y * c1 - d4) / d6;
@@ -80,12 +80,10 @@ pub fn solve(t06: &Matrix4<f64>, reference: &[f64; 6]) -> Vec<[f64; 6]> {
                 ((-xy * s1 + yy * c1) / s5).atan2((xx * s1 - yx * c1) / s5)
             };
             // Planar 3R problem of joints 2, 3, 4 in frame 1.
-            let t14 = dh_transform(0, theta1).try_inverse().expect("invertible")
+            let t14 = rigid_inverse(&dh_transform(0, theta1))
                 * t06
-                * (dh_transform(4, theta5) * dh_transform(5, theta6))
-                    .try_inverse()
-                    .expect("invertible")
-                * dh_transform(3, 0.0).try_inverse().expect("invertible");
+                * rigid_inverse(&(dh_transform(4, theta5) * dh_transform(5, theta6)))
+                * rigid_inverse(&dh_transform(3, 0.0));
             // t14 now maps frame 3' (frame 4 without θ4) into frame 1.
             let p13 = t14.fixed_view::<3, 1>(0, 3);
             let reach2 = p13.x * p13.x + p13.y * p13.y;
@@ -103,15 +101,23 @@ pub fn solve(t06: &Matrix4<f64>, reference: &[f64; 6]) -> Vec<[f64; 6]> {
                 let theta2 = p13.y.atan2(p13.x) - (a3 * theta3.sin()).atan2(a2 + a3 * theta3.cos());
                 // θ4 turns frame 3 into frame 4 about z: read it off the rotation
                 // that remains after joints 2 and 3.
-                let t34 = (dh_transform(1, theta2) * dh_transform(2, theta3))
-                    .try_inverse()
-                    .expect("invertible")
-                    * t14;
+                let t34 = rigid_inverse(&(dh_transform(1, theta2) * dh_transform(2, theta3))) * t14;
                 let theta4 = t34[(1, 0)].atan2(t34[(0, 0)]);
                 out.push([theta1, theta2, theta3, theta4, theta5, theta6].map(wrap));
             }
         }
     }
+    out
+}
+
+/// The inverse of a rigid transform [R p; 0 1]: [Rᵀ −Rᵀp; 0 1], in closed
+/// form (a general 4×4 inverse is several times the work).
+fn rigid_inverse(t: &Matrix4<f64>) -> Matrix4<f64> {
+    let r = t.fixed_view::<3, 3>(0, 0).transpose();
+    let p = -(r * t.fixed_view::<3, 1>(0, 3));
+    let mut out = Matrix4::identity();
+    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+    out.fixed_view_mut::<3, 1>(0, 3).copy_from(&p);
     out
 }
 

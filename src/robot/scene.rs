@@ -1,31 +1,18 @@
 //! The arm among the tree: which configurations and joint-space edges are
 //! collision-free, conservatively.
 //!
-//! An edge is checked at poses spaced so that no point of the robot moves
-//! more than `resolution` (δ) between two of them: between poses a point
-//! moves at most Σ_i R_i |Δq_i|, where R_i bounds the distance of any robot
-//! point from joint i's axis ([`LEVER_ARMS`]). Every robot shape is grown by
-//! δ/2 in these checks, so each pose between two samples is covered by a
-//! checked, inflated pose: a path accepted here is free at any finer
-//! resolution.
+//! A configuration is free when every robot shape, grown by δ/2
+//! (`resolution / 2`), touches nothing. An edge is free when conservative
+//! advancement ([`PlanningScene::edge_check`]) proves it: each checked pose's
+//! clearances, with a bound on how fast every shape can move along the edge,
+//! clear a stretch of it, so an edge far from everything needs a few poses
+//! and an edge that grazes something is refined where it grazes. Every pose
+//! of an accepted edge is free with no margin.
 
 use super::collision::{Allowed, CollisionModel, Hit, TreeObstacles};
 use super::rrt::{Config, MotionValidator};
-use super::ur5::{DH_A, DH_D, FINGER_LENGTH, TOOL_OFFSET};
 
-/// Largest capsule radius plus the gripper's half width, added to the
-/// kinematic reach to bound every collision shape (m).
-const SHAPE_SLACK: f64 = 0.1;
-
-/// R_i: an upper bound on the distance from joint i's axis to any point of
-/// the robot's collision shapes (m), from the chain of DH lengths beyond it.
-pub const LEVER_ARMS: [f64; 6] = {
-    let tool = TOOL_OFFSET + FINGER_LENGTH + SHAPE_SLACK;
-    let wrist = DH_D[4] + DH_D[5] + tool;
-    let forearm = -DH_A[2] + DH_D[3] + wrist;
-    let arm = -DH_A[1] + forearm;
-    [arm, arm, forearm, wrist, DH_D[5] + tool, tool]
-};
+pub use super::collision::LEVER_ARMS;
 
 /// Default edge-check resolution δ (m): no robot point moves more than this
 /// between checked poses; shapes are grown by δ/2.
@@ -75,15 +62,58 @@ impl<'a> PlanningScene<'a> {
     }
 }
 
-impl MotionValidator for PlanningScene<'_> {
-    fn config_valid(&self, q: &Config) -> bool {
-        self.hit(q).is_none()
+impl PlanningScene<'_> {
+    /// The straight edge `a` → `b` by conservative advancement: from each
+    /// end in turn, the pose's clearances and the shapes' sweep rates
+    /// ([`CollisionModel::free_span`]) prove a stretch of the edge free, and
+    /// the next pose is checked where that stretch ends, until the stretches
+    /// from both ends meet. A pose closer than δ/2 to anything rejects the
+    /// edge, as [`Self::hit`] rejects a configuration; so every stretch is
+    /// at least δ/(2 × the fastest shape's rate) long and the walk ends.
+    /// Every pose of an accepted edge is free with no margin.
+    pub fn edge_check(&self, a: &Config, b: &Config) -> EdgeCheck {
+        let rates = self.model.sweep_rates(a, b);
+        let mut poses = 0;
+        if rates.max() <= 0.0 {
+            return EdgeCheck { free: true, poses };
+        }
+        let at = |t: f64| -> Config { std::array::from_fn(|i| a[i] + (b[i] - a[i]) * t) };
+        // Most blocked edges are blocked in the middle: a plain check there
+        // rejects them before the walk from the ends.
+        poses += 1;
+        if !self.config_valid(&at(0.5)) {
+            return EdgeCheck { free: false, poses };
+        }
+        let (mut lo, mut hi) = (0.0, 1.0);
+        let min_clearance = self.resolution / 2.0;
+        let mut from_start = true;
+        while lo < hi {
+            let t = if from_start { lo } else { hi };
+            poses += 1;
+            let Some(span) = self.model.free_span(
+                &at(t),
+                self.obstacles,
+                &self.allowed,
+                &rates,
+                hi - lo,
+                min_clearance,
+            ) else {
+                return EdgeCheck { free: false, poses };
+            };
+            if from_start {
+                lo += span;
+            } else {
+                hi -= span;
+            }
+            from_start = !from_start;
+        }
+        EdgeCheck { free: true, poses }
     }
 
-    /// Checks the same poses as a sweep from `a` to `b`, but coarse to fine
-    /// (the end, the middle, the quarters, …), so an edge through an
-    /// obstacle is usually rejected after a few checks.
-    fn edge_valid(&self, a: &Config, b: &Config) -> bool {
+    /// The straight edge checked the textbook way: poses spaced by
+    /// [`Self::edge_intervals`], coarse to fine, each with margin δ/2
+    /// (kept for comparison; [`Self::edge_check`] is the one used).
+    pub fn edge_valid_fixed_step(&self, a: &Config, b: &Config) -> bool {
         let steps = self.edge_intervals(a, b);
         let at = |k: usize| -> Config {
             let t = k as f64 / steps as f64;
@@ -105,5 +135,24 @@ impl MotionValidator for PlanningScene<'_> {
             stride = half;
         }
         true
+    }
+}
+
+/// The outcome of one edge check, with its cost.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EdgeCheck {
+    pub free: bool,
+    /// Poses whose clearance was measured.
+    pub poses: usize,
+}
+
+impl MotionValidator for PlanningScene<'_> {
+    fn config_valid(&self, q: &Config) -> bool {
+        self.hit(q).is_none()
+    }
+
+    /// [`PlanningScene::edge_check`]: `a` must be valid (as RRT* ensures).
+    fn edge_valid(&self, a: &Config, b: &Config) -> bool {
+        self.edge_check(a, b).free
     }
 }

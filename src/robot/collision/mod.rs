@@ -18,6 +18,9 @@ use serde::Serialize;
 use super::ur5::{LinkShape, Ur5};
 use crate::tree::Tree;
 
+mod clearance;
+pub use clearance::{LEVER_ARMS, SweepRates};
+
 /// Height of the ground plane (m).
 pub const GROUND_Z: f64 = 0.0;
 
@@ -351,22 +354,7 @@ impl CollisionModel {
         };
         let mut reach = [0.0f64; 6];
         for slot in &self.shapes {
-            let pose = poses[slot.link];
-            // Points that bound the shape, and how far the shape reaches
-            // beyond them.
-            let (points, pad): (Vec<Point3<f64>>, f64) = match &slot.shape {
-                LinkShape::Capsule { a, b, radius } => (
-                    vec![pose * Point3::from(*a), pose * Point3::from(*b)],
-                    radius + margin,
-                ),
-                LinkShape::Box {
-                    centre,
-                    half_extents,
-                } => (
-                    vec![pose * centre * Point3::origin()],
-                    half_extents.norm() + margin,
-                ),
-            };
+            let (points, pad) = clearance::bounding_points(slot, &poses[slot.link], margin);
             for i in (0..6).filter(|&i| slot.moved_by[i]) {
                 for p in &points {
                     reach[i] = reach[i].max(from_axis(i, p) + pad);
