@@ -63,6 +63,8 @@ pub struct SweepRates {
     by_joint: Vec<[f64; 6]>,
     /// Per shape: the sum over joints, its speed in the world.
     rates: Vec<f64>,
+    /// Per self-collision pair of the model: how fast the two approach.
+    self_pairs: Vec<f64>,
 }
 
 impl SweepRates {
@@ -123,7 +125,17 @@ impl CollisionModel {
             })
             .collect();
         let rates = by_joint.iter().map(|r| r.iter().sum()).collect();
-        SweepRates { by_joint, rates }
+        let mut sweep = SweepRates {
+            by_joint,
+            rates,
+            self_pairs: Vec::new(),
+        };
+        sweep.self_pairs = self
+            .self_pairs
+            .iter()
+            .map(|&(i, j)| sweep.relative(self, i, j))
+            .collect();
+        sweep
     }
 
     /// How far (in t, at most `horizon`) the arm can move from `q` along an
@@ -142,20 +154,21 @@ impl CollisionModel {
     ) -> Option<f64> {
         let world = self.world_shapes(q, 0.0);
         let mut span = horizon;
-        // Shortens the span by a distance between shapes that close at
-        // `rate`; `None` when they are too close already.
-        let mut limit = |lower: f64, rate: f64, exact: &dyn Fn() -> f64| -> Option<()> {
-            if rate <= 0.0 || lower >= rate * span && lower >= min_clearance {
-                return Some(());
+        // Pairs whose bounding boxes are close enough to matter, with the
+        // span their boxes' distance allows (a lower bound on the true one;
+        // −1 for boxes closer than the clearance asked).
+        let mut pending: Vec<(f64, f64, Pair)> = Vec::new();
+        let mut consider = |lower: f64, rate: f64, pair: Pair| {
+            if rate <= 0.0 {
+                return;
             }
-            let d = exact();
-            if d < min_clearance {
-                return None;
+            if lower < min_clearance {
+                pending.push((-1.0, rate, pair));
+            } else if lower < rate * horizon {
+                pending.push((lower / rate, rate, pair));
             }
-            span = span.min(d / rate);
-            Some(())
         };
-        for (i, (shape, aabb)) in world.iter().enumerate() {
+        for (i, (_, aabb)) in world.iter().enumerate() {
             let rate = rates.rates[i];
             if rate <= 0.0 {
                 // Does not move along this edge: as free as at the edge's
@@ -163,31 +176,60 @@ impl CollisionModel {
                 continue;
             }
             if !self.shapes[i].base {
+                // Exact: a box's lowest point is its shape's lowest point.
                 let d = aabb.min.z - GROUND_Z;
-                limit(d, rate, &|| d)?;
+                if d < min_clearance {
+                    return None;
+                }
+                span = span.min(d / rate);
             }
-            for (node, capsule, branch_box) in &tree.branches {
+            for (b, (node, _, branch_box)) in tree.branches.iter().enumerate() {
                 if self.shapes[i].gripper && allowed.gripper_branches.contains(node) {
                     continue;
                 }
-                let branch = WorldShape::Capsule(capsule.clone());
-                limit(aabb.distance(branch_box), rate, &|| {
-                    distance(shape, &branch)
-                })?;
+                consider(aabb.distance(branch_box), rate, Pair::Branch(i, b));
             }
-            for (obstacle, obstacle_box) in tree.fixed.iter() {
-                limit(aabb.distance(obstacle_box), rate, &|| {
-                    distance(shape, obstacle)
-                })?;
+            for (f, (_, obstacle_box)) in tree.fixed.iter().enumerate() {
+                consider(aabb.distance(obstacle_box), rate, Pair::Fixed(i, f));
             }
         }
-        for &(i, j) in &self.self_pairs {
-            let rate = rates.relative(self, i, j);
-            let ((si, bi), (sj, bj)) = (&world[i], &world[j]);
-            limit(bi.distance(bj), rate, &|| distance(si, sj))?;
+        for (k, &(i, j)) in self.self_pairs.iter().enumerate() {
+            consider(
+                world[i].1.distance(&world[j].1),
+                rates.self_pairs[k],
+                Pair::SelfPair(i, j),
+            );
+        }
+        // The most constraining first: once a pair's lower bound allows the
+        // span found so far, so do all the rest.
+        pending.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        for (lower_span, rate, pair) in pending {
+            if lower_span >= span {
+                break;
+            }
+            let d = match pair {
+                Pair::Branch(i, b) => {
+                    distance(&world[i].0, &WorldShape::Capsule(tree.branches[b].1))
+                }
+                Pair::Fixed(i, f) => distance(&world[i].0, &tree.fixed[f].0),
+                Pair::SelfPair(i, j) => distance(&world[i].0, &world[j].0),
+            };
+            if d < min_clearance {
+                return None;
+            }
+            span = span.min(d / rate);
         }
         Some(span)
     }
+}
+
+/// A pair of shapes whose distance may limit the span: an arm shape and a
+/// branch or fixed obstacle (by index), or two arm shapes.
+#[derive(Debug, Clone, Copy)]
+enum Pair {
+    Branch(usize, usize),
+    Fixed(usize, usize),
+    SelfPair(usize, usize),
 }
 
 impl Aabb {
