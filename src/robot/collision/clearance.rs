@@ -197,7 +197,7 @@ impl CollisionModel {
             consider(
                 world[i].1.distance(&world[j].1),
                 rates.self_pairs[k],
-                Pair::SelfPair(i, j),
+                Pair::Arm(i, j),
             );
         }
         // The most constraining first: once a pair's lower bound allows the
@@ -212,7 +212,7 @@ impl CollisionModel {
                     distance(&world[i].0, &WorldShape::Capsule(tree.branches[b].1))
                 }
                 Pair::Fixed(i, f) => distance(&world[i].0, &tree.fixed[f].0),
-                Pair::SelfPair(i, j) => distance(&world[i].0, &world[j].0),
+                Pair::Arm(i, j) => distance(&world[i].0, &world[j].0),
             };
             if d < min_clearance {
                 return None;
@@ -229,7 +229,7 @@ impl CollisionModel {
 enum Pair {
     Branch(usize, usize),
     Fixed(usize, usize),
-    SelfPair(usize, usize),
+    Arm(usize, usize),
 }
 
 impl Aabb {
