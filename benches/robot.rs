@@ -114,9 +114,10 @@ fn main() {
     let runs = 40;
     println!("\nfence scene, {runs} seeds each (start → goal through a 0.5 m fence)");
     let fixed = FixedStep(&scene);
-    for (name, validator) in [
-        ("RRT* (ours)        ", &scene as &dyn MotionValidator),
-        ("RRT* (fixed-step)  ", &fixed as &dyn MotionValidator),
+    for (name, validator, lazy) in [
+        ("RRT* (ours, lazy)  ", &scene as &dyn MotionValidator, true),
+        ("RRT* (ours, eager) ", &scene as &dyn MotionValidator, false),
+        ("RRT* (fixed-step)  ", &fixed as &dyn MotionValidator, false),
     ] {
         let mut times = Vec::new();
         let mut costs = Vec::new();
@@ -124,6 +125,7 @@ fn main() {
             let options = RrtStarOptions {
                 seed,
                 time_budget: Some(Duration::from_secs(2)),
+                lazy,
                 ..RrtStarOptions::default()
             };
             let t = Instant::now();

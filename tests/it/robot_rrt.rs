@@ -257,3 +257,61 @@ fn conservative_advancement_accepts_only_free_edges() {
         "free edges: {ca_poses} poses against {fixed_poses} for the fixed step"
     );
 }
+
+/// Lazy edge evaluation returns only densely free paths, as the textbook
+/// algorithm does, while checking fewer edges, at no worse a median cost.
+#[test]
+fn lazy_rrt_star_returns_free_paths_with_fewer_edge_checks() {
+    use std::cell::Cell;
+    struct Counting<'a>(&'a PlanningScene<'a>, Cell<usize>);
+    impl MotionValidator for Counting<'_> {
+        fn config_valid(&self, q: &Config) -> bool {
+            self.0.config_valid(q)
+        }
+        fn edge_valid(&self, a: &Config, b: &Config) -> bool {
+            self.1.set(self.1.get() + 1);
+            self.0.edge_valid(a, b)
+        }
+    }
+    let model = CollisionModel::new(Ur5::default());
+    let obstacles = fence(bearing_between());
+    let scene = PlanningScene::new(&model, &obstacles, Allowed::default());
+    let mut edges = [0usize; 2];
+    let mut costs = [Vec::new(), Vec::new()];
+    for seed in 0..12 {
+        for (k, lazy) in [true, false].into_iter().enumerate() {
+            let counting = Counting(&scene, Cell::new(0));
+            let options = RrtStarOptions {
+                seed,
+                lazy,
+                time_budget: None,
+                ..RrtStarOptions::default()
+            };
+            let path = rrt_star(&START, &[GOAL], &counting, &options).expect("a path");
+            assert_eq!(path.waypoints.first(), Some(&START));
+            assert_eq!(path.waypoints.last(), Some(&GOAL));
+            assert!((path_cost(&path.waypoints) - path.cost).abs() < 1e-9);
+            assert!(
+                dense_path_is_free(&model, &obstacles, &path.waypoints),
+                "seed {seed}, lazy {lazy}: the path collides"
+            );
+            edges[k] += counting.1.get();
+            costs[k].push(path.cost);
+        }
+    }
+    assert!(
+        edges[0] < edges[1],
+        "lazy {} edges, eager {}",
+        edges[0],
+        edges[1]
+    );
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (lazy, eager) = (median(&mut costs[0]), median(&mut costs[1]));
+    assert!(
+        lazy <= eager * 1.1,
+        "median cost lazy {lazy}, eager {eager}"
+    );
+}

@@ -15,6 +15,10 @@
 //! - Stops at the iteration or time budget, or `refine_iterations` after
 //!   the first solution.
 //!
+//! - By default edges are evaluated lazily ([`lazy`]): checked only when a
+//!   path through them is about to be used (`lazy: false` keeps the
+//!   textbook algorithm, which checks every edge as it is added).
+//!
 //! The validity of configurations and edges is the caller's
 //! [`MotionValidator`]; [`super::scene::PlanningScene`] is the one used for
 //! the arm. The random stream is ChaCha8 from `seed`, so a plan with the
@@ -27,6 +31,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use super::ur5::JOINT_LIMITS;
+
+mod lazy;
 
 pub type Config = [f64; 6];
 
@@ -50,6 +56,9 @@ pub struct RrtStarOptions {
     pub refine_iterations: usize,
     /// How far beyond the start and goals each joint is sampled (rad).
     pub sampling_margin: f64,
+    /// Lazy edge evaluation ([`lazy`]): edges join the tree unchecked and
+    /// are checked only when a path through them is about to be used.
+    pub lazy: bool,
     pub seed: u64,
 }
 
@@ -63,6 +72,7 @@ impl Default for RrtStarOptions {
             gamma: 6.0,
             refine_iterations: 40,
             sampling_margin: 1.5,
+            lazy: true,
             seed: 1,
         }
     }
@@ -116,6 +126,70 @@ fn steer(from: &Config, to: &Config, max_step: f64) -> Config {
     std::array::from_fn(|i| from[i] + (to[i] - from[i]) * f)
 }
 
+/// The valid goals (with their index among those given), the random
+/// stream and the sampling box of one query.
+struct Sampler {
+    goals: Vec<(usize, Config)>,
+    rng: ChaCha8Rng,
+    bounds: [(f64, f64); 6],
+}
+
+impl Sampler {
+    fn new(
+        start: &Config,
+        goals: &[Config],
+        validator: &dyn MotionValidator,
+        options: &RrtStarOptions,
+    ) -> Result<Self, RrtError> {
+        if !validator.config_valid(start) {
+            return Err(RrtError::StartInvalid);
+        }
+        let goals: Vec<(usize, Config)> = goals
+            .iter()
+            .copied()
+            .enumerate()
+            .filter(|(_, g)| validator.config_valid(g))
+            .collect();
+        if goals.is_empty() {
+            return Err(RrtError::NoValidGoal);
+        }
+        let bounds: [(f64, f64); 6] = std::array::from_fn(|i| {
+            let values = goals
+                .iter()
+                .map(|g| g.1[i])
+                .chain(std::iter::once(start[i]));
+            let lo = values.clone().fold(f64::INFINITY, f64::min) - options.sampling_margin;
+            let hi = values.fold(f64::NEG_INFINITY, f64::max) + options.sampling_margin;
+            (lo.max(JOINT_LIMITS[i].0), hi.min(JOINT_LIMITS[i].1))
+        });
+        Ok(Self {
+            goals,
+            rng: ChaCha8Rng::seed_from_u64(options.seed),
+            bounds,
+        })
+    }
+}
+
+/// A goal (with probability `goal_bias`) or a uniform sample of the box.
+fn sample(
+    rng: &mut ChaCha8Rng,
+    goals: &[(usize, Config)],
+    bounds: &[(f64, f64); 6],
+    goal_bias: f64,
+) -> Config {
+    if rng.random::<f64>() < goal_bias {
+        goals[rng.random_range(0..goals.len())].1
+    } else {
+        std::array::from_fn(|i| rng.random_range(bounds[i].0..=bounds[i].1))
+    }
+}
+
+/// The neighbour radius of RRT* with `n` nodes, never above the step.
+fn neighbour_radius(options: &RrtStarOptions, n: usize) -> f64 {
+    let n = n as f64 + 1.0;
+    (options.gamma * (n.ln() / n).powf(1.0 / 6.0)).min(options.max_step)
+}
+
 struct Node {
     q: Config,
     parent: Option<usize>,
@@ -130,29 +204,15 @@ pub fn rrt_star(
     validator: &dyn MotionValidator,
     options: &RrtStarOptions,
 ) -> Result<RrtPath, RrtError> {
+    if options.lazy {
+        return lazy::rrt_star(start, goals, validator, options);
+    }
     let clock = Instant::now();
-    if !validator.config_valid(start) {
-        return Err(RrtError::StartInvalid);
-    }
-    let goals: Vec<(usize, Config)> = goals
-        .iter()
-        .copied()
-        .enumerate()
-        .filter(|(_, g)| validator.config_valid(g))
-        .collect();
-    if goals.is_empty() {
-        return Err(RrtError::NoValidGoal);
-    }
-    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
-    let bounds: [(f64, f64); 6] = std::array::from_fn(|i| {
-        let values = goals
-            .iter()
-            .map(|g| g.1[i])
-            .chain(std::iter::once(start[i]));
-        let lo = values.clone().fold(f64::INFINITY, f64::min) - options.sampling_margin;
-        let hi = values.fold(f64::NEG_INFINITY, f64::max) + options.sampling_margin;
-        (lo.max(JOINT_LIMITS[i].0), hi.min(JOINT_LIMITS[i].1))
-    });
+    let Sampler {
+        goals,
+        mut rng,
+        bounds,
+    } = Sampler::new(start, goals, validator, options)?;
     let mut nodes = vec![Node {
         q: *start,
         parent: None,
@@ -194,11 +254,7 @@ pub fn rrt_star(
             break;
         }
         stats.iterations += 1;
-        let sample: Config = if rng.random::<f64>() < options.goal_bias {
-            goals[rng.random_range(0..goals.len())].1
-        } else {
-            std::array::from_fn(|i| rng.random_range(bounds[i].0..=bounds[i].1))
-        };
+        let sample = sample(&mut rng, &goals, &bounds, options.goal_bias);
         let nearest = (0..nodes.len())
             .min_by(|&a, &b| {
                 distance(&nodes[a].q, &sample).total_cmp(&distance(&nodes[b].q, &sample))
@@ -208,8 +264,7 @@ pub fn rrt_star(
         if !validator.config_valid(&new_q) {
             continue;
         }
-        let n = nodes.len() as f64 + 1.0;
-        let radius = (options.gamma * (n.ln() / n).powf(1.0 / 6.0)).min(options.max_step);
+        let radius = neighbour_radius(options, nodes.len());
         let mut near: Vec<(usize, f64)> = (0..nodes.len())
             .map(|i| (i, distance(&nodes[i].q, &new_q)))
             .filter(|&(i, d)| d <= radius || i == nearest)
