@@ -114,10 +114,31 @@ fn main() {
     let runs = 40;
     println!("\nfence scene, {runs} seeds each (start → goal through a 0.5 m fence)");
     let fixed = FixedStep(&scene);
-    for (name, validator, lazy) in [
-        ("RRT* (ours, lazy)  ", &scene as &dyn MotionValidator, true),
-        ("RRT* (ours, eager) ", &scene as &dyn MotionValidator, false),
-        ("RRT* (fixed-step)  ", &fixed as &dyn MotionValidator, false),
+    for (name, validator, lazy, refine) in [
+        (
+            "RRT* (ours, lazy)   ",
+            &scene as &dyn MotionValidator,
+            true,
+            20,
+        ),
+        (
+            "RRT* (lazy, refine 40)",
+            &scene as &dyn MotionValidator,
+            true,
+            40,
+        ),
+        (
+            "RRT* (ours, eager)  ",
+            &scene as &dyn MotionValidator,
+            false,
+            20,
+        ),
+        (
+            "RRT* (fixed-step)   ",
+            &fixed as &dyn MotionValidator,
+            false,
+            20,
+        ),
     ] {
         let mut times = Vec::new();
         let mut costs = Vec::new();
@@ -126,6 +147,7 @@ fn main() {
                 seed,
                 time_budget: Some(Duration::from_secs(2)),
                 lazy,
+                refine_iterations: refine,
                 ..RrtStarOptions::default()
             };
             let t = Instant::now();
