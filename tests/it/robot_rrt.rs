@@ -315,3 +315,81 @@ fn lazy_rrt_star_returns_free_paths_with_fewer_edge_checks() {
         "median cost lazy {lazy}, eager {eager}"
     );
 }
+
+/// Counts the edge checks a search asks for; blocks every edge when
+/// `block_all` (a config is always valid).
+struct EdgeCounter {
+    block_all: bool,
+    scene: Option<PlanningScene<'static>>,
+    edges: std::cell::Cell<usize>,
+}
+
+impl MotionValidator for EdgeCounter {
+    fn config_valid(&self, q: &Config) -> bool {
+        self.scene.as_ref().is_none_or(|s| s.config_valid(q))
+    }
+    fn edge_valid(&self, a: &Config, b: &Config) -> bool {
+        self.edges.set(self.edges.get() + 1);
+        !self.block_all && self.scene.as_ref().is_none_or(|s| s.edge_valid(a, b))
+    }
+}
+
+#[test]
+fn a_free_direct_edge_to_the_nearest_goal_ends_the_search_at_once() {
+    let model: &'static CollisionModel = Box::leak(Box::new(CollisionModel::new(Ur5::default())));
+    // The fence stands behind the arm: nothing between START and GOAL.
+    let obstacles: &'static TreeObstacles =
+        Box::leak(Box::new(fence(bearing_between() + std::f64::consts::PI)));
+    let counter = EdgeCounter {
+        block_all: false,
+        scene: Some(PlanningScene::new(model, obstacles, Allowed::default())),
+        edges: std::cell::Cell::new(0),
+    };
+    let farther: Config = [1.6, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.4];
+    for lazy in [true, false] {
+        counter.edges.set(0);
+        let options = RrtStarOptions {
+            lazy,
+            time_budget: None,
+            ..RrtStarOptions::default()
+        };
+        let path = rrt_star(&START, &[farther, GOAL], &counter, &options).expect("a path");
+        assert_eq!(path.waypoints, vec![START, GOAL], "lazy {lazy}");
+        assert_eq!(path.goal, 1);
+        assert!((path.cost - treemanip::robot::rrt::distance(&START, &GOAL)).abs() < 1e-12);
+        assert_eq!(path.stats.iterations, 0, "lazy {lazy}: no sampling needed");
+        assert_eq!(
+            counter.edges.get(),
+            1,
+            "lazy {lazy}: only the nearest goal's direct edge is checked"
+        );
+    }
+}
+
+#[test]
+fn shortcut_never_checks_a_blocked_pair_twice() {
+    let blocked = EdgeCounter {
+        block_all: true,
+        scene: None,
+        edges: std::cell::Cell::new(0),
+    };
+    let path: Vec<Config> = (0..5)
+        .map(|k| [0.1 * k as f64, 0.05 * (k % 2) as f64, 0.0, 0.0, 0.0, 0.0])
+        .collect();
+    // Three waypoints have one pair to try; five have six.
+    for (len, pairs) in [(3, 1), (5, 6)] {
+        blocked.edges.set(0);
+        let out = shortcut(&path[..len], &blocked, 100, 7);
+        assert_eq!(out, path[..len].to_vec());
+        assert_eq!(blocked.edges.get(), pairs, "{len} waypoints");
+    }
+    // With every edge free, the path becomes its two ends.
+    let free = EdgeCounter {
+        block_all: false,
+        scene: None,
+        edges: std::cell::Cell::new(0),
+    };
+    let out = shortcut(&path, &free, 100, 7);
+    assert_eq!(out, vec![path[0], path[4]]);
+    assert!(path_cost(&out) <= path_cost(&path));
+}

@@ -17,8 +17,8 @@
 use std::time::Instant;
 
 use super::{
-    Config, MotionValidator, RrtError, RrtPath, RrtStarOptions, RrtStats, Sampler, distance,
-    neighbour_radius, path_cost, sample, steer,
+    Config, MotionValidator, RrtError, RrtPath, RrtStarOptions, RrtStats, Sampler,
+    cost_lower_bound, direct_link, distance, neighbour_radius, path_cost, sample, steer,
 };
 
 /// Neighbours tried, cheapest first, when a blocked edge's child is moved.
@@ -172,11 +172,8 @@ pub(super) fn rrt_star(
         cost_history: Vec::new(),
         elapsed_ms: 0.0,
     };
-    for (g, (_, goal)) in goals.iter().enumerate() {
-        if validator.edge_valid(start, goal) {
-            goal_links.push((0, g));
-        }
-    }
+    goal_links.extend(direct_link(start, &goals, validator).map(|g| (0, g)));
+    let lower_bound = cost_lower_bound(start, &goals);
     loop {
         // The cheapest goal link whose path is still free becomes the best.
         let mut links: Vec<(f64, usize, usize)> = goal_links
@@ -208,9 +205,10 @@ pub(super) fn rrt_star(
                 break;
             }
         }
-        if stats
-            .first_solution
-            .is_some_and(|f| stats.iterations >= f + options.refine_iterations)
+        if best.as_ref().is_some_and(|b| b.0 <= lower_bound)
+            || stats
+                .first_solution
+                .is_some_and(|f| stats.iterations >= f + options.refine_iterations)
             || stats.iterations >= options.max_iterations
             || options.time_budget.is_some_and(|b| clock.elapsed() >= b)
         {

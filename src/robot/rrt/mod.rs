@@ -12,8 +12,10 @@
 //!   r_n = min(γ (ln n / n)^{1/6}, `max_step`), then rewires those
 //!   neighbours through the new node when that is cheaper. Cost is joint-
 //!   space path length, so the best cost never increases with iterations.
-//! - Stops at the iteration or time budget, or `refine_iterations` after
-//!   the first solution.
+//! - Tries the direct edge to each goal first, nearest goal first, and
+//!   stops at the iteration or time budget, `refine_iterations` after the
+//!   first solution, or at once when a path is as short as the straight
+//!   line to the nearest goal (nothing can beat it).
 //!
 //! - By default edges are evaluated lazily ([`lazy`]): checked only when a
 //!   path through them is about to be used (`lazy: false` keeps the
@@ -186,6 +188,35 @@ fn sample(
     }
 }
 
+/// A direct edge is the shortest path to its goal: the direct edges are
+/// checked nearest goal first, and the first free one is returned (a
+/// farther goal's direct edge cannot beat it, so it is not checked).
+fn direct_link(
+    start: &Config,
+    goals: &[(usize, Config)],
+    validator: &dyn MotionValidator,
+) -> Option<usize> {
+    let mut order: Vec<(usize, f64)> = goals
+        .iter()
+        .enumerate()
+        .map(|(g, (_, goal))| (g, distance(start, goal)))
+        .collect();
+    order.sort_by(|a, b| a.1.total_cmp(&b.1));
+    order
+        .into_iter()
+        .map(|(g, _)| g)
+        .find(|&g| validator.edge_valid(start, &goals[g].1))
+}
+
+/// No path is shorter than the straight line to the nearest goal; a path
+/// of that cost ends the search.
+fn cost_lower_bound(start: &Config, goals: &[(usize, Config)]) -> f64 {
+    goals
+        .iter()
+        .map(|(_, g)| distance(start, g))
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// The neighbour radius of RRT* with `n` nodes, never above the step.
 fn neighbour_radius(options: &RrtStarOptions, n: usize) -> f64 {
     let n = n as f64 + 1.0;
@@ -236,12 +267,8 @@ pub fn rrt_star(
             .map(|&(n, g)| (nodes[n].cost + distance(&nodes[n].q, &goals[g].1), n, g))
             .min_by(|a, b| a.0.total_cmp(&b.0))
     };
-    // A direct edge is the best possible path: try it first.
-    for (g, (_, goal)) in goals.iter().enumerate() {
-        if validator.edge_valid(start, goal) {
-            goal_links.push((0, g));
-        }
-    }
+    goal_links.extend(direct_link(start, &goals, validator).map(|g| (0, g)));
+    let lower_bound = cost_lower_bound(start, &goals);
     if let Some((cost, _, _)) = best(&nodes, &goal_links) {
         stats.first_solution = Some(0);
         stats.cost_history.push((0, cost));
@@ -250,6 +277,9 @@ pub fn rrt_star(
     while stats.first_solution.is_none()
         || stats.iterations < stats.first_solution.unwrap_or(0) + options.refine_iterations
     {
+        if best(&nodes, &goal_links).is_some_and(|b| b.0 <= lower_bound) {
+            break; // nothing can be shorter
+        }
         if stats.iterations >= options.max_iterations
             || options.time_budget.is_some_and(|b| clock.elapsed() >= b)
         {
@@ -358,6 +388,10 @@ pub fn path_cost(path: &[Config]) -> f64 {
 
 /// Random shortcutting: repeatedly joins two random waypoints directly when
 /// that edge is free, dropping what lay between. Never lengthens the path.
+///
+/// A pair found blocked is not drawn again while the path is unchanged, and
+/// the smoothing stops once every pair is known blocked: a three-waypoint
+/// path has one pair, which would otherwise be checked `attempts` times.
 pub fn shortcut(
     path: &[Config],
     validator: &dyn MotionValidator,
@@ -366,14 +400,26 @@ pub fn shortcut(
 ) -> Vec<Config> {
     let mut path = path.to_vec();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    // Pairs (i, j), j ≥ i + 2, of the current path whose edge is blocked.
+    let mut blocked: Vec<(usize, usize)> = Vec::new();
     for _ in 0..attempts {
-        if path.len() < 3 {
+        let n = path.len();
+        if n < 3 {
             break;
         }
-        let i = rng.random_range(0..path.len() - 2);
-        let j = rng.random_range(i + 2..path.len());
+        let open: Vec<(usize, usize)> = (0..n - 2)
+            .flat_map(|i| (i + 2..n).map(move |j| (i, j)))
+            .filter(|p| !blocked.contains(p))
+            .collect();
+        if open.is_empty() {
+            break;
+        }
+        let (i, j) = open[rng.random_range(0..open.len())];
         if validator.edge_valid(&path[i], &path[j]) {
             path.drain(i + 1..j);
+            blocked.clear();
+        } else {
+            blocked.push((i, j));
         }
     }
     path
