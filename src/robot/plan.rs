@@ -21,7 +21,11 @@
 //!    the snapshot at or beyond it). The gripper may touch the pushed
 //!    subtree; a push the simulator rejects (the branch would slip out) is
 //!    infeasible.
-//! 5. **RRT\*** from the start to all remaining goal configurations at once.
+//! 5. **RRT\*** from the start to all remaining goal configurations at once,
+//!    each moved out of the canopy first: the tool backs away from the
+//!    pre-contact pose along −T̂ at constant orientation, as far as that is
+//!    free (up to 12 cm), and RRT* aims there; the approach ends with the
+//!    straight line back in.
 //! 6. The first success is shortcut, timed (trapezoidal joint profiles for
 //!    the approach, constant tool speed for the push) and returned with the
 //!    index where the push begins. Every attempt is reported with its
@@ -71,7 +75,7 @@ impl Default for PlanOptions {
                 // Successful approaches need far fewer (95 % of traced
                 // successes within 2,400); a failing one would otherwise
                 // spend most of a plan's time.
-                max_iterations: 2500,
+                max_iterations: 1000,
                 ..RrtStarOptions::default()
             },
             shortcut_attempts: 100,
@@ -96,7 +100,8 @@ pub enum Outcome {
     PushInfeasible,
     /// RRT* found no path within its budget.
     NoPath,
-    /// The overall budget ran out before this candidate.
+    /// A budget (time, or the predictions of a searching strategy) ran
+    /// out before this candidate.
     Skipped,
     /// The planner predicted this push leaves the tree no closer to its
     /// target than doing nothing, so it was not executed.
@@ -335,14 +340,27 @@ pub fn execute(
     if pushes.is_empty() {
         return Err(Outcome::PushInfeasible);
     }
-    let goal_configs: Vec<Config> = pushes.iter().map(|p| p.0).collect();
-    let path = match rrt_star(start, &goal_configs, &approach_scene, &options.rrt) {
+    // RRT* aims at entry configurations outside the canopy: from each
+    // pre-contact configuration the tool backs out along −T̂ at constant
+    // orientation as far as that is free (at most RETREAT). The approach
+    // is then RRT*'s path to an entry and the straight line back in.
+    let retreats: Vec<Vec<Config>> = pushes
+        .iter()
+        .map(|(goal, _)| retreat_line(model, &approach_scene, goal, &-direction))
+        .collect();
+    let entries: Vec<Config> = retreats
+        .iter()
+        .map(|r| *r.last().expect("a retreat starts at its goal"))
+        .collect();
+    let path = match rrt_star(start, &entries, &approach_scene, &options.rrt) {
         Ok(path) => path,
         Err(RrtError::StartInvalid) => return Err(Outcome::StartInCollision),
         Err(RrtError::NoPath { .. } | RrtError::NoValidGoal) => return Err(Outcome::NoPath),
     };
+    let mut approach = path.waypoints.clone();
+    approach.extend(retreats[path.goal].iter().rev().skip(1));
     let smooth = shortcut(
-        &path.waypoints,
+        &approach,
         &approach_scene,
         options.shortcut_attempts,
         options.rrt.seed,
@@ -418,6 +436,53 @@ impl<'a> PushSnapshots<'a> {
             })
             .as_ref()
     }
+}
+
+/// Longest tool retreat from the pre-contact pose before the approach (m).
+pub const RETREAT: f64 = 0.12;
+/// Spacing of the retreat's IK steps (m); the edges between them are
+/// checked continuously.
+const RETREAT_STEP: f64 = 0.02;
+
+/// The tool's straight retreat from `goal` along `direction` at constant
+/// orientation, every [`RETREAT_STEP`] up to [`RETREAT`], as far as it
+/// stays on one IK branch and free in `scene`: `goal` first, at least.
+fn retreat_line(
+    model: &CollisionModel,
+    scene: &PlanningScene<'_>,
+    goal: &Config,
+    direction: &Vector3<f64>,
+) -> Vec<Config> {
+    let start_pose = model.robot.tool_pose(goal);
+    let steps = (RETREAT / RETREAT_STEP).round() as usize;
+    let mut line = vec![*goal];
+    for k in 1..=steps {
+        let offset = direction * (RETREAT_STEP * k as f64);
+        let pose = Isometry3::from_parts(
+            Translation3::from(start_pose.translation.vector + offset),
+            start_pose.rotation,
+        );
+        let previous = *line.last().expect("non-empty");
+        let Some(next) = model
+            .robot
+            .inverse_kinematics(&pose, &previous)
+            .first()
+            .copied()
+        else {
+            break;
+        };
+        let jump = (0..6)
+            .map(|i| (next[i] - previous[i]).abs())
+            .fold(0.0, f64::max);
+        if jump > PUSH_MAX_JOINT_STEP * (RETREAT_STEP / PUSH_STEP)
+            || !scene.config_valid(&next)
+            || !scene.edge_valid(&previous, &next)
+        {
+            break;
+        }
+        line.push(next);
+    }
+    line
 }
 
 /// Joint configurations along the straight push from `goal`, every
