@@ -304,12 +304,12 @@ pub async fn plan(
         nodes,
         "max_candidates",
     )?;
-    query.max_evaluations = count(
+    query.max_evaluations = Some(count(
         request.max_evaluations,
-        query.max_evaluations,
+        query.evaluations(),
         state.limits.max_plan_evaluations,
         "max_evaluations",
-    )?;
+    )?);
     query.seed = request.seed.unwrap_or(1);
     let info = ModelInfo::of(&policy, &state);
     let planner = state.planner.clone();

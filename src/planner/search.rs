@@ -18,10 +18,15 @@ use crate::tree::Tree;
 pub const MIN_PUSH: f64 = 0.05;
 pub const MAX_PUSH: f64 = 0.15;
 
+/// Pushes per node and round when the budget is small: the policy's push
+/// (or the mean) and two around it.
+const MIN_SAMPLES: usize = 3;
+
 #[derive(Debug, Clone)]
 pub struct SearchOptions {
     pub rounds: usize,
-    /// Pushes sampled per node and round.
+    /// Pushes sampled per node and round, at most (fewer when
+    /// `max_evaluations` spread over the rounds and nodes allows fewer).
     pub samples: usize,
     /// The best this many of a node's round set its next mean and spread.
     pub elite: usize,
@@ -92,11 +97,19 @@ pub fn search_pushes(
     let mut active = vec![true; seeds.len()];
     for round in 0..options.rounds {
         let mut round_pushes: Vec<(usize, Push)> = Vec::new();
+        // A small budget is spread over every round and active seed rather
+        // than spent on the first seeds' first round.
+        let active_seeds = active.iter().filter(|a| **a).count().max(1);
+        let rounds_left = options.rounds - round;
+        let budget_left = options.max_evaluations.saturating_sub(evaluations);
+        let samples = budget_left
+            .div_ceil(rounds_left * active_seeds)
+            .clamp(MIN_SAMPLES, options.samples.max(MIN_SAMPLES));
         for (k, (seed, (mean, sigma))) in seeds.iter().zip(&state).enumerate() {
             if !active[k] {
                 continue;
             }
-            for i in 0..options.samples {
+            for i in 0..samples {
                 let vector = if round == 0 && i == 0 {
                     *mean // the policy's own push is always a candidate
                 } else {

@@ -293,3 +293,49 @@ fn eval_ranks_executes_every_rank() {
     }
     std::fs::remove_dir_all(&out).ok();
 }
+
+#[test]
+fn the_default_search_budget_follows_the_graphs_size_and_bounds_predictions() {
+    use treemanip::planner::default_evaluations;
+    // A prediction costs in proportion to N(N-1): fewer pushes for bigger
+    // trees, more with a base region, within 16..=96.
+    assert_eq!(default_evaluations(15, false), 40);
+    assert_eq!(default_evaluations(30, false), 16);
+    assert_eq!(default_evaluations(10, true), 96);
+    assert_eq!(default_evaluations(30, true), 48);
+    for region in [false, true] {
+        for n in 3..63 {
+            let (a, b) = (
+                default_evaluations(n, region),
+                default_evaluations(n + 1, region),
+            );
+            assert!(b <= a && (16..=96).contains(&b));
+        }
+    }
+    let (tree, targets) = episode(20, 5);
+    let mut q = query(&tree, &targets, Strategy::Physics, false);
+    assert_eq!(q.evaluations(), default_evaluations(20, false));
+    q.stance = Stance::Region(treemanip::eval::plan::evaluation_region());
+    assert_eq!(q.evaluations(), default_evaluations(20, true));
+    // An explicit budget bounds the search; the fallback to the policy's
+    // own pushes adds at most FALLBACK_PREDICTIONS.
+    let set = models();
+    let (policy, forward) = (
+        set.get("policy_gnn").unwrap(),
+        set.get("forward_gnn").unwrap(),
+    );
+    for strategy in [Strategy::Physics, Strategy::Model] {
+        let mut q = query(&tree, &targets, strategy, false);
+        q.max_evaluations = Some(5);
+        let plan = Planner::default().plan(&q, policy, Some(forward)).unwrap();
+        check_plan(&plan, &q);
+        assert!(
+            plan.evaluations <= 5 + treemanip::planner::FALLBACK_PREDICTIONS,
+            "{strategy:?}: {} predictions",
+            plan.evaluations
+        );
+        if plan.plan.is_some() {
+            assert!(plan.predicted_error.is_some());
+        }
+    }
+}
