@@ -53,6 +53,13 @@ pub struct ServeArgs {
     /// How long (µs) a queued request may wait for others to join its batch.
     #[arg(long, env = "TREEMANIP_MAX_QUEUE_DELAY_US", default_value_t = 200)]
     max_queue_delay_us: u64,
+    /// Threads one inference runs on (ONNX Runtime's intra-op pool); each
+    /// model gets cores ÷ this many sessions. Default: every core, one
+    /// session (the fastest per batch measured on 2 cores; the batcher
+    /// merges concurrent requests). `1` gives one single-threaded session
+    /// per core.
+    #[arg(long, env = "TREEMANIP_SESSION_THREADS")]
+    session_threads: Option<usize>,
     /// Serve the models that load and report the others as not ready,
     /// instead of refusing to start when a model file is missing, truncated
     /// or of another feature layout.
@@ -129,8 +136,15 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     if args.max_batch == 0 {
         anyhow::bail!("--max-batch must be at least 1");
     }
-    // One session (and batching worker) per core, each on one thread.
-    let sessions = std::thread::available_parallelism().map_or(2, |n| n.get());
+    let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+    let threads = args.session_threads.unwrap_or(cores);
+    if threads == 0 {
+        anyhow::bail!("--session-threads must be at least 1");
+    }
+    let sessions = crate::infer::models::SessionLayout {
+        count: (cores / threads).max(1),
+        threads,
+    };
     let batching = crate::infer::batcher::BatchLimits {
         max_batch: args.max_batch,
         max_pairs: crate::infer::batcher::MAX_PAIRS,

@@ -171,6 +171,14 @@ impl OnnxModel {
             builder = builder
                 .with_intra_threads(threads)
                 .map_err(|e| load(e.to_string()))?;
+            // Idle pool threads would otherwise spin after every run,
+            // taking the cores the planner's collision checks and
+            // simulations need between two inferences.
+            if threads > 1 {
+                builder = builder
+                    .with_intra_op_spinning(false)
+                    .map_err(|e| load(e.to_string()))?;
+            }
         }
         let session = builder
             .commit_from_memory(bytes)

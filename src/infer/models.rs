@@ -18,6 +18,40 @@ use crate::tree::Tree;
 /// Graphs per inference call; larger requests are split.
 pub const MAX_BATCH: usize = 64;
 
+/// How a model's inference is spread over the cores: `count` sessions,
+/// each with its batching worker, each running one batch on `threads`
+/// threads (ONNX Runtime's intra-op pool; tract runs one thread per
+/// session, so there the layout becomes `count × threads` sessions).
+///
+/// One session on every core is the default: measured on 2 cores (AMD
+/// EPYC), the forward GNN ran 1.6-2× faster per push than on two
+/// single-threaded sessions (N = 20, 8 pushes: 2.1 vs 4.1 ms a push), and a
+/// single graph (the contact policy's ranking) almost twice as fast
+/// (N = 30: 6.0 vs 11.2 ms), while the batcher still merges concurrent
+/// callers' jobs into one batch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SessionLayout {
+    pub count: usize,
+    pub threads: usize,
+}
+
+impl SessionLayout {
+    /// One session using `cores` threads.
+    pub fn shared(cores: usize) -> Self {
+        Self {
+            count: 1,
+            threads: cores.max(1),
+        }
+    }
+}
+
+/// `n` single-threaded sessions.
+impl From<usize> for SessionLayout {
+    fn from(count: usize) -> Self {
+        Self { count, threads: 1 }
+    }
+}
+
 /// One model file and its sessions, behind a dynamic batcher.
 pub struct ServedModel {
     /// File stem: `forward_gnn`, `policy_pointnet`, ...
@@ -34,17 +68,21 @@ pub struct ServedModel {
 }
 
 impl ServedModel {
-    pub fn load(path: &Path, sessions: usize) -> Result<Self, InferError> {
+    pub fn load(path: &Path, sessions: impl Into<SessionLayout>) -> Result<Self, InferError> {
         Self::load_with(path, sessions, BatchLimits::default())
     }
 
-    /// Loads a model with `sessions` sessions (one worker thread each)
+    /// Loads a model with a session layout (a batching worker per session)
     /// batching requests within `limits`.
     pub fn load_with(
         path: &Path,
-        sessions: usize,
+        sessions: impl Into<SessionLayout>,
         limits: BatchLimits,
     ) -> Result<Self, InferError> {
+        let mut spread: SessionLayout = sessions.into();
+        if !matches!(init_backend(None)?, Backend::OnnxRuntime { .. }) {
+            spread = (spread.count.max(1) * spread.threads.max(1)).into();
+        }
         let bytes = std::fs::read(path)
             .map_err(|e| InferError::Load(format!("reading {}: {e}", path.display())))?;
         let metadata = read_metadata(&bytes)
@@ -59,8 +97,8 @@ impl ServedModel {
                 path.display()
             )));
         }
-        let mut sessions = (0..sessions.max(1))
-            .map(|_| OnnxModel::with_threads(&bytes, metadata.clone(), Some(1)))
+        let mut sessions = (0..spread.count.max(1))
+            .map(|_| OnnxModel::with_threads(&bytes, metadata.clone(), Some(spread.threads.max(1))))
             .collect::<Result<Vec<_>, _>>()?;
         let task = sessions[0].task();
         for session in &mut sessions {
@@ -192,7 +230,7 @@ impl ModelSet {
     pub fn load_dir(
         dir: &Path,
         library: Option<&Path>,
-        sessions: usize,
+        sessions: impl Into<SessionLayout>,
         skip_broken: bool,
     ) -> Result<Self, InferError> {
         Self::load_dir_with(dir, library, sessions, skip_broken, BatchLimits::default())
@@ -202,11 +240,12 @@ impl ModelSet {
     pub fn load_dir_with(
         dir: &Path,
         library: Option<&Path>,
-        sessions: usize,
+        sessions: impl Into<SessionLayout>,
         skip_broken: bool,
         limits: BatchLimits,
     ) -> Result<Self, InferError> {
         let backend = init_backend(library)?;
+        let sessions = sessions.into();
         let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
             .map_err(|e| InferError::Load(format!("reading {}: {e}", dir.display())))?
             .filter_map(|e| e.ok().map(|e| e.path()))

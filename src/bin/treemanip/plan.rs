@@ -15,7 +15,7 @@ use treemanip::eval::plan::{
     to_markdown,
 };
 use treemanip::eval::plots::rank_histogram_svg;
-use treemanip::infer::models::{ModelSet, ServedModel};
+use treemanip::infer::models::{ModelSet, ServedModel, SessionLayout};
 use treemanip::planner::{Planner, Query, Stance, Strategy};
 use treemanip::robot::ur5;
 use treemanip::sim::{Push, SimConfig, simulate};
@@ -72,8 +72,13 @@ pub struct PlanArgs {
 
 /// The GNN policy and forward model from a models directory.
 pub(crate) fn load_models(dir: &std::path::Path) -> anyhow::Result<ModelSet> {
-    let set = ModelSet::load_dir(dir, None, rayon::current_num_threads(), false)
-        .with_context(|| format!("cannot load the models in {}", dir.display()))?;
+    let set = ModelSet::load_dir(
+        dir,
+        None,
+        SessionLayout::shared(rayon::current_num_threads()),
+        false,
+    )
+    .with_context(|| format!("cannot load the models in {}", dir.display()))?;
     for name in ["policy_gnn", "forward_gnn"] {
         if set.get(name).is_none() {
             bail!("{} has no {name}.onnx", dir.display());
