@@ -141,6 +141,20 @@ impl SimError {
 
 /// Solves one push.
 pub fn simulate(tree: &Tree, push: &Push, config: &SimConfig) -> Result<PushOutcome, SimError> {
+    simulate_from(tree, push, config, None)
+}
+
+/// [`simulate`], starting the solver at `warm` joint rotations (one per
+/// node, as [`PushOutcome::joint_rotations`] of a nearby push of the same
+/// node on the same tree) instead of at rest: a push followed in steps
+/// then costs a few Newton iterations a step. Where the warm start does
+/// not converge the solve starts again at rest.
+pub fn simulate_from(
+    tree: &Tree,
+    push: &Push,
+    config: &SimConfig,
+    warm: Option<&[Vector3<f64>]>,
+) -> Result<PushOutcome, SimError> {
     let n = tree.len();
     if push.node >= n {
         return Err(SimError::NodeOutOfRange { node: push.node, n });
@@ -164,7 +178,31 @@ pub fn simulate(tree: &Tree, push: &Push, config: &SimConfig) -> Result<PushOutc
     if contact.hold == Hold::AtNode {
         check_reach(tree, &chain, &contact)?;
     }
-    let mut solved = solve_contact(&chain, &contact, &push.vector, &config.solver)?;
+    // The warm start in the solver's coordinates x = √K θ.
+    let warm = warm.filter(|w| w.len() == n).map(|w| {
+        DVector::from_iterator(
+            3 * chain.len(),
+            chain
+                .nodes
+                .iter()
+                .zip(&chain.stiffness)
+                .flat_map(|(&node, k)| {
+                    (w[node] * k.sqrt())
+                        .into_iter()
+                        .copied()
+                        .collect::<Vec<_>>()
+                }),
+        )
+    });
+    let solve = |contact: &Contact| {
+        warm.as_ref()
+            .and_then(|x| solve_contact_from(&chain, contact, &config.solver, x.clone()))
+            .map_or_else(
+                || solve_contact(&chain, contact, &push.vector, &config.solver),
+                Ok,
+            )
+    };
+    let mut solved = solve(&contact)?;
     if contact.hold == Hold::OnAxis {
         let length = tree.branch(push.node).expect("non-root").length;
         let slide = contact.slide(&chain, &chain.pose(&solved.theta));
@@ -172,7 +210,7 @@ pub fn simulate(tree: &Tree, push: &Push, config: &SimConfig) -> Result<PushOutc
             // Slid to the fork: the child branches stop the slot there.
             let caught = contact.caught_at_node();
             check_reach(tree, &chain, &caught)?;
-            solved = solve_contact(&chain, &caught, &push.vector, &config.solver)?;
+            solved = solve(&caught)?;
         } else if !(0.0..=length).contains(&slide) {
             return Err(SimError::LostBranch { slide, length });
         }
@@ -239,6 +277,49 @@ fn check_reach(tree: &Tree, chain: &PathChain, contact: &Contact) -> Result<(), 
     Ok(())
 }
 
+/// One solve of `contact` from `start`, in stiffness-scaled coordinates.
+fn solve_scaled(
+    chain: &PathChain,
+    contact: &Contact,
+    options: &SolverOptions,
+    start: DVector<f64>,
+) -> Result<solver::Solution, SolveError> {
+    let inv_sqrt_k: Vec<f64> = chain.stiffness.iter().map(|k| 1.0 / k.sqrt()).collect();
+    let eval = |x: &DVector<f64>| -> (DVector<f64>, DMatrix<f64>) {
+        let pose = chain.pose(&to_theta(chain, x));
+        let (c, mut jac) = contact.evaluate(chain, &pose);
+        for col in 0..jac.ncols() {
+            jac.column_mut(col).scale_mut(inv_sqrt_k[col / 3]);
+        }
+        (c, jac)
+    };
+    solver::solve_from(start, &eval, options)
+}
+
+/// Joint rotations θ = x / √K from the solver's coordinates.
+fn to_theta(chain: &PathChain, x: &DVector<f64>) -> Vec<f64> {
+    x.iter()
+        .enumerate()
+        .map(|(i, v)| v / chain.stiffness[i / 3].sqrt())
+        .collect()
+}
+
+/// [`solve_scaled`] from a warm start, or `None` when it does not converge.
+fn solve_contact_from(
+    chain: &PathChain,
+    contact: &Contact,
+    options: &SolverOptions,
+    start: DVector<f64>,
+) -> Option<Solved> {
+    let solution = solve_scaled(chain, contact, options, start).ok()?;
+    Some(Solved {
+        theta: to_theta(chain, &solution.x),
+        lambda: solution.lambda.clone(),
+        contact: contact.clone(),
+        solution,
+    })
+}
+
 struct Solved {
     theta: Vec<f64>,
     lambda: DVector<f64>,
@@ -260,24 +341,8 @@ fn solve_contact(
     push: &Vector3<f64>,
     options: &SolverOptions,
 ) -> Result<Solved, SimError> {
-    let inv_sqrt_k: Vec<f64> = chain.stiffness.iter().map(|k| 1.0 / k.sqrt()).collect();
-    let to_theta = |x: &DVector<f64>| -> Vec<f64> {
-        x.iter()
-            .enumerate()
-            .map(|(i, v)| v * inv_sqrt_k[i / 3])
-            .collect()
-    };
-    let solve_for = |contact: &Contact, start: DVector<f64>| {
-        let eval = |x: &DVector<f64>| -> (DVector<f64>, DMatrix<f64>) {
-            let pose = chain.pose(&to_theta(x));
-            let (c, mut jac) = contact.evaluate(chain, &pose);
-            for col in 0..jac.ncols() {
-                jac.column_mut(col).scale_mut(inv_sqrt_k[col / 3]);
-            }
-            (c, jac)
-        };
-        solver::solve_from(start, &eval, options)
-    };
+    let solve_for =
+        |contact: &Contact, start: DVector<f64>| solve_scaled(chain, contact, options, start);
     let n = 3 * chain.len();
     let mut result = solve_for(contact, DVector::zeros(n));
     for steps in [4usize, 16] {
@@ -306,7 +371,7 @@ fn solve_contact(
         SolveError::Degenerate => SimError::Degenerate,
     })?;
     Ok(Solved {
-        theta: to_theta(&solution.x),
+        theta: to_theta(chain, &solution.x),
         lambda: solution.lambda.clone(),
         contact: contact.clone(),
         solution,

@@ -64,3 +64,49 @@ fn pinned_pushes_converge() {
         "{failed} of {attempts} did not converge"
     );
 }
+
+/// A push followed in 1 cm steps, each solve warm-started from the last
+/// (as the planner's push check does), ends where solving each step from
+/// rest ends, in fewer Newton iterations.
+#[test]
+fn warm_started_steps_reach_the_same_steady_states() {
+    use treemanip::sim::{Push, simulate_from};
+    let config = SimConfig::default();
+    let (mut warm_iterations, mut cold_iterations, mut compared) = (0, 0, 0);
+    for k in 0..12u64 {
+        let tree = generate([10, 18, 26][k as usize % 3], 500 + k, &ScaParams::default()).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(k);
+        let push = PushDistribution::default().sample(&tree, &mut rng);
+        let steps = (push.vector.norm() / 0.01).ceil() as usize;
+        let mut warm: Option<Vec<nalgebra::Vector3<f64>>> = None;
+        for s in 1..=steps {
+            let partial = Push {
+                node: push.node,
+                vector: push.vector * (s as f64 / steps as f64),
+            };
+            let cold = simulate(&tree, &partial, &config);
+            let hot = simulate_from(&tree, &partial, &config, warm.as_deref());
+            match (cold, hot) {
+                (Ok(cold), Ok(hot)) => {
+                    for (a, b) in cold.final_positions.iter().zip(&hot.final_positions) {
+                        assert!((a - b).norm() < 1e-7, "tree {k}, step {s}: {a} vs {b}");
+                    }
+                    cold_iterations += cold.report.iterations;
+                    warm_iterations += hot.report.iterations;
+                    compared += 1;
+                    warm = Some(hot.joint_rotations);
+                }
+                (Err(a), Err(b)) => {
+                    assert_eq!(a.kind(), b.kind(), "tree {k}, step {s}");
+                    break;
+                }
+                (a, b) => panic!("tree {k}, step {s}: cold {a:?}, warm {b:?}"),
+            }
+        }
+    }
+    assert!(compared >= 60, "only {compared} steps compared");
+    assert!(
+        warm_iterations < cold_iterations,
+        "warm {warm_iterations} vs cold {cold_iterations} Newton iterations"
+    );
+}
