@@ -299,7 +299,7 @@ fn the_default_search_budget_follows_the_graphs_size_and_bounds_predictions() {
     use treemanip::planner::default_evaluations;
     // A prediction costs in proportion to N(N-1): fewer pushes for bigger
     // trees, more with a base region, within 16..=96.
-    assert_eq!(default_evaluations(15, false), 40);
+    assert_eq!(default_evaluations(15, false), 60);
     assert_eq!(default_evaluations(30, false), 16);
     assert_eq!(default_evaluations(10, true), 96);
     assert_eq!(default_evaluations(30, true), 48);
