@@ -23,12 +23,14 @@ pub const MAX_BATCH: usize = 64;
 /// threads (ONNX Runtime's intra-op pool; tract runs one thread per
 /// session, so there the layout becomes `count × threads` sessions).
 ///
-/// One session on every core is the default: measured on 2 cores (AMD
-/// EPYC), the forward GNN ran 1.6-2× faster per push than on two
-/// single-threaded sessions (N = 20, 8 pushes: 2.1 vs 4.1 ms a push), and a
-/// single graph (the contact policy's ranking) almost twice as fast
-/// (N = 30: 6.0 vs 11.2 ms), while the batcher still merges concurrent
-/// callers' jobs into one batch.
+/// One session on every core is the server's default, for latency:
+/// measured on 2 cores (AMD EPYC), the planner's batches of the forward GNN
+/// ran 1.6-2× faster per push than on two single-threaded sessions (N = 20,
+/// 8 pushes: 2.1 vs 4.1 ms a push), the contact policy's single graph at
+/// N = 30 in 8.2 instead of 11.2 ms, and one `/v1/forward` call at N = 30
+/// in 11.6 instead of 14.9 ms (p50). Under many concurrent small calls two
+/// single-threaded sessions keep more throughput (N = 15, 64 clients: 479
+/// against 424 requests/s; N = 30 equal), hence `--session-threads 1`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SessionLayout {
     pub count: usize,
