@@ -490,31 +490,48 @@ fn retreat_line(
     goal: &Config,
     direction: &Vector3<f64>,
 ) -> Vec<Config> {
-    let start_pose = model.robot.tool_pose(goal);
     let steps = (RETREAT / RETREAT_STEP).round() as usize;
+    tool_line(
+        model,
+        goal,
+        direction,
+        steps,
+        &|k| RETREAT_STEP * k as f64,
+        PUSH_MAX_JOINT_STEP * (RETREAT_STEP / PUSH_STEP),
+        &|previous, next, _| scene.config_valid(next) && scene.edge_valid(previous, next),
+    )
+}
+
+/// The tool's straight line from `goal` along `direction` at constant
+/// orientation: IK at `distance(k)` for k = 1..=steps, each solution
+/// continuous with the last (no joint moves more than `max_jump`) and
+/// accepted by `step_free(previous, next, distance)`; `goal` first, up to
+/// the first step that fails.
+fn tool_line(
+    model: &CollisionModel,
+    goal: &Config,
+    direction: &Vector3<f64>,
+    steps: usize,
+    distance: &dyn Fn(usize) -> f64,
+    max_jump: f64,
+    step_free: &dyn Fn(&Config, &Config, f64) -> bool,
+) -> Vec<Config> {
+    let start_pose = model.robot.tool_pose(goal);
     let mut line = vec![*goal];
     for k in 1..=steps {
-        let offset = direction * (RETREAT_STEP * k as f64);
+        let distance = distance(k);
         let pose = Isometry3::from_parts(
-            Translation3::from(start_pose.translation.vector + offset),
+            Translation3::from(start_pose.translation.vector + direction * distance),
             start_pose.rotation,
         );
         let previous = *line.last().expect("non-empty");
-        let Some(next) = model
-            .robot
-            .inverse_kinematics(&pose, &previous)
-            .first()
-            .copied()
-        else {
+        let Some(&next) = model.robot.inverse_kinematics(&pose, &previous).first() else {
             break;
         };
         let jump = (0..6)
             .map(|i| (next[i] - previous[i]).abs())
             .fold(0.0, f64::max);
-        if jump > PUSH_MAX_JOINT_STEP * (RETREAT_STEP / PUSH_STEP)
-            || !scene.config_valid(&next)
-            || !scene.edge_valid(&previous, &next)
-        {
+        if jump > max_jump || !step_free(&previous, &next, distance) {
             break;
         }
         line.push(next);
@@ -533,25 +550,15 @@ fn push_line(
     direction: &Vector3<f64>,
     travel: f64,
 ) -> Option<Vec<Config>> {
-    let start_pose = model.robot.tool_pose(goal);
     let steps = (travel / PUSH_STEP).ceil() as usize;
-    let mut line = vec![*goal];
-    for k in 1..=steps {
-        let distance = travel * k as f64 / steps as f64;
-        let offset = direction * distance;
-        let pose = Isometry3::from_parts(
-            Translation3::from(start_pose.translation.vector + offset),
-            start_pose.rotation,
-        );
-        let previous = *line.last().expect("non-empty");
-        let next = *model.robot.inverse_kinematics(&pose, &previous).first()?;
-        let jump = (0..6)
-            .map(|i| (next[i] - previous[i]).abs())
-            .fold(0.0, f64::max);
-        if jump > PUSH_MAX_JOINT_STEP || !edge_free(&previous, &next, distance) {
-            return None;
-        }
-        line.push(next);
-    }
-    Some(line)
+    let line = tool_line(
+        model,
+        goal,
+        direction,
+        steps,
+        &|k| travel * k as f64 / steps as f64,
+        PUSH_MAX_JOINT_STEP,
+        edge_free,
+    );
+    (line.len() == steps + 1).then_some(line)
 }
