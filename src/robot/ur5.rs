@@ -382,6 +382,11 @@ pub fn urdf_string() -> String {
 /// The committed URDF, embedded so the binary needs no files.
 pub const URDF: &str = include_str!("../../assets/ur5_gripper.urdf");
 
+/// World poses of the links, in the model's link order: on the stack for
+/// arms of up to 16 links (the UR5 with its gripper has 13), since the
+/// collision checker computes them for every pose it checks.
+pub type LinkPoses = smallvec::SmallVec<[Isometry3<f64>; 16]>;
+
 /// A collision shape attached to a link, in the link's frame.
 #[derive(Debug, Clone, PartialEq)]
 pub enum LinkShape {
@@ -511,8 +516,8 @@ impl Ur5 {
 
     /// World pose of every link at configuration `q`, in the model's link
     /// order (see [`Ur5::link_names`]).
-    pub fn link_poses(&self, q: &[f64; 6]) -> Vec<Isometry3<f64>> {
-        let mut poses: Vec<Isometry3<f64>> = Vec::with_capacity(self.links.len());
+    pub fn link_poses(&self, q: &[f64; 6]) -> LinkPoses {
+        let mut poses = LinkPoses::new();
         for l in &self.links {
             let parent = l.parent.map_or(self.base, |p| poses[p]);
             let mut pose = parent * l.origin;

@@ -19,6 +19,7 @@ use super::ur5::{LinkShape, Ur5};
 use crate::tree::Tree;
 
 mod clearance;
+mod segment_box;
 pub use clearance::{LEVER_ARMS, SweepRates};
 
 /// Height of the ground plane (m).
@@ -119,8 +120,27 @@ struct Aabb {
 
 impl Aabb {
     fn overlaps(&self, other: &Aabb) -> bool {
-        (0..3).all(|k| self.min[k] <= other.max[k] && other.min[k] <= self.max[k])
+        self.min.x <= other.max.x
+            && other.min.x <= self.max.x
+            && self.min.y <= other.max.y
+            && other.min.y <= self.max.y
+            && self.min.z <= other.max.z
+            && other.min.z <= self.max.z
     }
+
+    /// The smallest box holding both (`EMPTY` is the identity).
+    fn union(&self, other: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.inf(&other.min),
+            max: self.max.sup(&other.max),
+        }
+    }
+
+    /// Holds nothing and overlaps nothing.
+    const EMPTY: Aabb = Aabb {
+        min: Vector3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY),
+        max: Vector3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
+    };
 
     fn of_capsule(a: &Vector3<f64>, b: &Vector3<f64>, r: f64) -> Self {
         let pad = Vector3::repeat(r);
@@ -142,6 +162,10 @@ fn pose(iso: &Isometry3<f64>) -> Pose {
         Rot3::from_xyzw(q.i, q.j, q.k, q.w),
     )
 }
+
+/// The arm's shapes in the world at one configuration, with their bounding
+/// boxes (on the stack: computed for every pose checked).
+type WorldShapes = smallvec::SmallVec<[(WorldShape, Aabb); 16]>;
 
 /// A shape in the world, ready for queries.
 #[derive(Debug, Clone)]
@@ -167,18 +191,33 @@ pub struct TreeObstacles {
     branches: Vec<(usize, Capsule, Aabb)>,
     /// Fixed obstacles, never touched by anything.
     fixed: std::sync::Arc<[(WorldShape, Aabb)]>,
+    /// One box around all of them: an arm shape far from it skips the lot.
+    bounds: Aabb,
 }
 
+type Branches = Vec<(usize, Capsule, Aabb)>;
+
 impl TreeObstacles {
+    fn from_parts(branches: Branches, fixed: std::sync::Arc<[(WorldShape, Aabb)]>) -> Self {
+        let bounds = branches
+            .iter()
+            .map(|b| &b.2)
+            .chain(fixed.iter().map(|f| &f.1))
+            .fold(Aabb::EMPTY, |all, b| all.union(b));
+        Self {
+            branches,
+            fixed,
+            bounds,
+        }
+    }
+
     /// The tree at rest.
     pub fn new(tree: &Tree) -> Self {
         Self::deformed(tree, tree.positions())
     }
 
-    /// The tree with its nodes at `positions` (same topology and radii).
-    pub fn deformed(tree: &Tree, positions: &[Point3<f64>]) -> Self {
-        let branches = tree
-            .branches_iter()
+    fn branches_at(tree: &Tree, positions: &[Point3<f64>]) -> Branches {
+        tree.branches_iter()
             .map(|(j, b)| {
                 let parent = tree.parent(j).expect("non-root");
                 let (a, c) = (positions[parent].coords, positions[j].coords);
@@ -188,54 +227,46 @@ impl TreeObstacles {
                     Aabb::of_capsule(&a, &c, b.radius),
                 )
             })
-            .collect();
-        Self {
-            branches,
-            fixed: Vec::new().into(),
-        }
+            .collect()
+    }
+
+    /// The tree with its nodes at `positions` (same topology and radii).
+    pub fn deformed(tree: &Tree, positions: &[Point3<f64>]) -> Self {
+        Self::from_parts(Self::branches_at(tree, positions), Vec::new().into())
     }
 
     /// These obstacles with `obstacles` added as fixed ones.
-    pub fn with_obstacles(mut self, obstacles: &[Obstacle]) -> Self {
+    pub fn with_obstacles(self, obstacles: &[Obstacle]) -> Self {
         let mut fixed = self.fixed.to_vec();
         fixed.extend(obstacles.iter().map(Obstacle::world_shape));
-        self.fixed = fixed.into();
-        self
+        Self::from_parts(self.branches, fixed.into())
     }
 
     /// The same fixed obstacles around the tree with its nodes at
     /// `positions` (a snapshot during a push).
     pub fn with_tree_at(&self, tree: &Tree, positions: &[Point3<f64>]) -> Self {
-        Self {
-            fixed: self.fixed.clone(),
-            ..Self::deformed(tree, positions)
-        }
+        Self::from_parts(Self::branches_at(tree, positions), self.fixed.clone())
     }
 
     /// Nothing to hit (an empty workcell but for the ground).
     pub fn empty() -> Self {
-        Self {
-            branches: Vec::new(),
-            fixed: Vec::new().into(),
-        }
+        Self::from_parts(Vec::new(), Vec::new().into())
     }
 
     /// Arbitrary capsules (node label, endpoints, radius), e.g. a wall of
     /// obstacles in a test scene.
     pub fn from_capsules(capsules: &[(usize, Point3<f64>, Point3<f64>, f64)]) -> Self {
-        Self {
-            branches: capsules
-                .iter()
-                .map(|(node, a, b, r)| {
-                    (
-                        *node,
-                        Capsule::new(vec3(&a.coords), vec3(&b.coords), *r),
-                        Aabb::of_capsule(&a.coords, &b.coords, *r),
-                    )
-                })
-                .collect(),
-            fixed: Vec::new().into(),
-        }
+        let branches = capsules
+            .iter()
+            .map(|(node, a, b, r)| {
+                (
+                    *node,
+                    Capsule::new(vec3(&a.coords), vec3(&b.coords), *r),
+                    Aabb::of_capsule(&a.coords, &b.coords, *r),
+                )
+            })
+            .collect();
+        Self::from_parts(branches, Vec::new().into())
     }
 }
 
@@ -377,7 +408,7 @@ impl CollisionModel {
             .collect()
     }
 
-    fn world_shapes(&self, q: &[f64; 6], margin: f64) -> Vec<(WorldShape, Aabb)> {
+    fn world_shapes(&self, q: &[f64; 6], margin: f64) -> WorldShapes {
         let poses = self.robot.link_poses(q);
         self.shapes
             .iter()
@@ -439,7 +470,9 @@ impl CollisionModel {
             }
         }
         for (i, (shape, aabb)) in world.iter().enumerate() {
-            let (pose_a, shape_a) = shape.as_query();
+            if !aabb.overlaps(&tree.bounds) {
+                continue;
+            }
             for (node, capsule, branch_box) in &tree.branches {
                 if !aabb.overlaps(branch_box) {
                     continue;
@@ -447,7 +480,7 @@ impl CollisionModel {
                 if self.shapes[i].gripper && allowed.gripper_branches.contains(node) {
                     continue;
                 }
-                if intersects(&pose_a, shape_a, &Pose::IDENTITY, capsule) {
+                if intersects(shape, &WorldShape::Capsule(*capsule)) {
                     return Some(Hit::Branch {
                         link: name(i),
                         node: *node,
@@ -456,13 +489,11 @@ impl CollisionModel {
             }
         }
         for (i, (shape, aabb)) in world.iter().enumerate() {
-            let (pose_a, shape_a) = shape.as_query();
             for (index, (obstacle, obstacle_box)) in tree.fixed.iter().enumerate() {
                 if !aabb.overlaps(obstacle_box) {
                     continue;
                 }
-                let (pose_b, shape_b) = obstacle.as_query();
-                if intersects(&pose_a, shape_a, &pose_b, shape_b) {
+                if intersects(shape, obstacle) {
                     return Some(Hit::Obstacle {
                         link: name(i),
                         index,
@@ -474,9 +505,7 @@ impl CollisionModel {
             if !world[i].1.overlaps(&world[j].1) {
                 continue;
             }
-            let (pa, sa) = world[i].0.as_query();
-            let (pb, sb) = world[j].0.as_query();
-            if intersects(&pa, sa, &pb, sb) {
+            if intersects(&world[i].0, &world[j].0) {
                 return Some(Hit::SelfCollision {
                     link: name(i),
                     other: name(j),
@@ -487,12 +516,23 @@ impl CollisionModel {
     }
 }
 
-fn intersects(pa: &Pose, a: &dyn Shape, pb: &Pose, b: &dyn Shape) -> bool {
-    if let (Some(c1), Some(c2)) = (a.as_capsule(), b.as_capsule()) {
-        return capsules_intersect(pa, c1, pb, c2);
+/// Whether two shapes touch: closed forms for capsule pairs and capsule–box
+/// pairs ([`segment_box`]), parry's default dispatcher for two boxes.
+fn intersects(a: &WorldShape, b: &WorldShape) -> bool {
+    match (a, b) {
+        (WorldShape::Capsule(c1), WorldShape::Capsule(c2)) => {
+            capsules_intersect(&Pose::IDENTITY, c1, &Pose::IDENTITY, c2)
+        }
+        (WorldShape::Capsule(c), WorldShape::Box(cuboid, pose))
+        | (WorldShape::Box(cuboid, pose), WorldShape::Capsule(c)) => {
+            segment_box::segment_box_distance_squared(c.segment.a, c.segment.b, cuboid, pose)
+                <= c.radius * c.radius
+        }
+        _ => {
+            let ((pa, sa), (pb, sb)) = (a.as_query(), b.as_query());
+            intersection_test(&pa, sa, &pb, sb).map_or(true, |r| r.intersecting)
+        }
     }
-    // Boxes: parry's default dispatcher.
-    intersection_test(pa, a, pb, b).map_or(true, |r| r.intersecting)
 }
 
 /// Two capsules touch when their segments are within the sum of the radii:
