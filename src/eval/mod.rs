@@ -1,5 +1,6 @@
 //! Evaluations the way the paper reports them, with tables and figures.
 
+pub mod ablations;
 pub mod learned;
 pub mod plan;
 pub mod plots;

@@ -2,6 +2,7 @@
 //! ort instead of one per file), a module per area. Shared helpers, the
 //! server launcher and HTTP client among them, live in [`common`].
 
+mod ablations;
 mod batching;
 mod cli_trees;
 mod common;

@@ -5,8 +5,7 @@
 use std::path::Path;
 
 use nalgebra::Vector3;
-use treemanip::dataset::collect::{CollectConfig, collect_size};
-use treemanip::dataset::{Split, write_size_file};
+use treemanip::dataset::Split;
 use treemanip::graph::stats::StatsBuilder;
 use treemanip::graph::{Batch, GraphInput, Task, batch, encode_forward, encode_policy};
 use treemanip::infer::{Backend, OnnxModel, init_backend};
@@ -175,16 +174,7 @@ fn dropping_edge_attributes_changes_the_answer_and_branch_connectivity_ignores_f
 }
 
 fn tiny_dataset(dir: &Path) {
-    let config = CollectConfig {
-        trees_per_size: 10,
-        distinct_topologies: false,
-        seed: 3,
-        ..CollectConfig::default()
-    };
-    for n in [6, 8] {
-        let (data, _) = collect_size(Split::Train, n, 160, &config, &|| {}).unwrap();
-        write_size_file(&data, &dir.join(Split::Train.file_name(n))).unwrap();
-    }
+    crate::common::tiny_dataset(dir, &[Split::Train]);
 }
 
 fn tiny_config(task: Task, arch: Arch, data: &Path, epochs: usize) -> TrainConfig {

@@ -1,6 +1,7 @@
 //! `treemanip`: the offline tool. Generates trees, (later) simulates pushes,
 //! collects data, trains, exports and evaluates models.
 
+mod ablations;
 mod args;
 mod dataset;
 mod learn;
@@ -66,6 +67,10 @@ enum EvalCommand {
     /// Contact policies executed in the simulator, with Greedy, Random and
     /// No Action: e_N per tree size (the paper's Fig. 7, right).
     Policy(learn::EvalLearnedArgs),
+    /// The paper's Table I: every edge-attribute and connectivity variant
+    /// of the forward GNN trained under one budget and scored on the test
+    /// split (resumable across sessions).
+    Ablations(ablations::EvalAblationsArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -83,6 +88,7 @@ fn main() -> std::process::ExitCode {
         Command::Eval(EvalCommand::Forward(args)) => {
             learn::eval_learned(treemanip::graph::Task::Forward, args)
         }
+        Command::Eval(EvalCommand::Ablations(args)) => ablations::eval_ablations(args),
         Command::Eval(EvalCommand::Policy(args)) => {
             learn::eval_learned(treemanip::graph::Task::Policy, args)
         }

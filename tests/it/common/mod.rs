@@ -16,6 +16,24 @@ pub fn treemanip(args: &[&str]) -> Output {
 }
 
 /// A fresh, empty directory unique to this test process and `tag`.
+/// A tiny dataset in `dir`: 160 episodes of sizes 6 and 8 on 10 trees
+/// each, per split asked for (seconds to collect).
+pub fn tiny_dataset(dir: &std::path::Path, splits: &[treemanip::dataset::Split]) {
+    use treemanip::dataset::collect::{CollectConfig, collect_size};
+    let config = CollectConfig {
+        trees_per_size: 10,
+        distinct_topologies: false,
+        seed: 3,
+        ..CollectConfig::default()
+    };
+    for &split in splits {
+        for n in [6, 8] {
+            let (data, _) = collect_size(split, n, 160, &config, &|| {}).unwrap();
+            treemanip::dataset::write_size_file(&data, &dir.join(split.file_name(n))).unwrap();
+        }
+    }
+}
+
 pub fn temp_dir(tag: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("treemanip-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
