@@ -118,5 +118,28 @@ fn the_study_trains_every_variant_under_one_budget_and_checks_the_closest_pair()
     let svg = tmp.join("ablations.svg");
     write_figure(&done, 4, &svg).unwrap();
     assert!(std::fs::read_to_string(&svg).unwrap().contains("<svg"));
+    // A run in progress under another budget is refused, not mixed in.
+    let other = StudyConfig {
+        dir: tmp.join("other"),
+        ..config.clone()
+    };
+    let first = &status(&other).remaining[0];
+    let started = TrainConfig {
+        epochs: 3,
+        edge_attributes: first.variant.edge_attributes,
+        ..other.template.clone()
+    };
+    let (_, reason) = treemanip::nn::train::train(
+        started,
+        &first.dir(&other.dir),
+        Some(Instant::now()),
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(reason, treemanip::nn::train::StopReason::TimeBudget);
+    let refused = run_study(&other, None, &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(refused.contains("another budget"), "{refused}");
     let _ = std::fs::remove_dir_all(&tmp);
 }

@@ -27,7 +27,8 @@ use crate::infer::OnnxModel;
 use crate::nn::gnn::{Connectivity, EdgeAttributes};
 use crate::nn::train::checkpoint::{MODEL_FILE, OPTIMIZER_FILE};
 use crate::nn::train::{
-    ResumeOptions, STATE_FILE, StopReason, TrainConfig, TrainEvent, read_best, resume, train,
+    ResumeOptions, STATE_FILE, StopReason, TrainConfig, TrainEvent, read_best, read_state, resume,
+    train,
 };
 
 /// One row of Table I.
@@ -269,7 +270,9 @@ pub fn run_study(
         let dir = run.dir(&config.dir);
         let mut forward = |e: TrainEvent| on_event(StudyEvent::Train(e));
         let (state, reason) = if dir.join(STATE_FILE).exists() {
+            same_budget(&read_state(&dir)?.config, &config.template, &dir)?;
             let options = ResumeOptions {
+                data: Some(config.template.data.clone()),
                 command: config.template.command.clone(),
                 ..ResumeOptions::default()
             };
@@ -296,6 +299,35 @@ pub fn run_study(
             let _ = std::fs::remove_file(dir.join(file));
         }
     }
+}
+
+/// A run in progress must go on under the study's budget and recipe: a
+/// different `--epochs` (say) in a later session would make the rows
+/// incomparable.
+fn same_budget(run: &TrainConfig, study: &TrainConfig, dir: &Path) -> anyhow::Result<()> {
+    let recipe = |c: &TrainConfig| {
+        (
+            c.epochs,
+            c.batch_size,
+            c.sizes.clone(),
+            c.limit_per_size,
+            c.hidden,
+            c.learning_rate.to_bits(),
+            c.schedule,
+            c.augment_rotation,
+        )
+    };
+    anyhow::ensure!(
+        recipe(run) == recipe(study),
+        "{} was started with another budget or recipe ({} epochs, batch {}, sizes {:?}, limit {:?}, hidden {}); continue the study with the settings it started with",
+        dir.display(),
+        run.epochs,
+        run.batch_size,
+        run.sizes,
+        run.limit_per_size,
+        run.hidden
+    );
+    Ok(())
 }
 
 /// Scores a finished run's chosen weights on the test split, through the
