@@ -25,6 +25,12 @@ use treemanip::nn::train::data::Targets;
 use treemanip::nn::train::time_steps;
 use treemanip::tree::{ScaParams, Tree, generate};
 
+/// The training binary's allocator and its setting
+/// ([`treemanip::nn::train::keep_freed_pages`]), so the step measured here
+/// is the step `treemanip train` runs.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 #[allow(dead_code)] // the learn bench uses the peak only
 #[path = "common/peak.rs"]
 mod peak;
@@ -251,6 +257,7 @@ fn main() {
         return;
     }
     if which != "inference" {
+        treemanip::nn::train::keep_freed_pages();
         training();
     }
     if which != "training" {

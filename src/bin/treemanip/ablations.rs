@@ -60,6 +60,7 @@ pub struct EvalAblationsArgs {
 
 pub fn eval_ablations(args: EvalAblationsArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.epochs > 0, "--epochs must be positive");
+    treemanip::nn::train::keep_freed_pages();
     let mut template = TrainConfig::paper(Task::Forward, Arch::Gnn, args.data.clone());
     template.epochs = args.epochs;
     template.sizes = args.sizes.0.clone();

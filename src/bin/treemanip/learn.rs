@@ -111,6 +111,7 @@ pub struct TrainArgs {
 }
 
 pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
+    treemanip::nn::train::keep_freed_pages();
     let task: Task = args.task.into();
     let arch = match args.arch {
         ArchArg::Gnn => Arch::Gnn,

@@ -28,8 +28,11 @@
 
 pub mod checkpoint;
 pub mod data;
+mod memory;
 pub mod modules;
 mod objective;
+
+pub use self::memory::keep_freed_pages;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
