@@ -239,6 +239,23 @@ pub struct Batch {
     pub mask: Vec<f32>,
 }
 
+impl Batch {
+    /// The graphs `range` of this batch, with the same padding.
+    pub fn rows(&self, range: std::ops::Range<usize>) -> Batch {
+        let (nd, gd, n) = (self.task.node_dim(), self.task.global_dim(), self.n);
+        let cut = |v: &[f32], per: usize| v[range.start * per..range.end * per].to_vec();
+        Batch {
+            task: self.task,
+            batch: range.len(),
+            n,
+            nodes: cut(&self.nodes, n * nd),
+            edges: cut(&self.edges, n * n * EDGE_DIM),
+            global: cut(&self.global, gd),
+            mask: cut(&self.mask, n),
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum BatchError {
     #[error("an empty batch")]

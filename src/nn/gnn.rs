@@ -194,16 +194,34 @@ impl Mlp {
 
 impl GnnWeights {
     /// FLOPs of one forward pass on one graph of `n` nodes, counted from the
-    /// layer shapes as dense matrix products (the edge MLPs run on all N²
-    /// pairs, the node MLPs and heads on N rows, the global encoder on one).
-    /// A training step (forward and backward) costs about three times this.
+    /// layer shapes as the matrix products the training module and the
+    /// exported graph run: the first layer of every block MLP is split by
+    /// input (W_g g + W_i n_i + W_j n_j + W_e e_ij), so only the edge term
+    /// runs on all N² pairs, the node terms on N rows and the global term
+    /// once; layers 2 and 3 of the edge MLPs run on the N² pairs. A training
+    /// step (forward and backward) costs about three times this.
     pub fn flops_per_graph(&self, n: usize) -> f64 {
         let (n, e) = (n as f64, (n * n) as f64);
+        let global = self
+            .global_encoder
+            .as_ref()
+            .map_or(0, |m| m.layers[2].outputs) as f64;
         let mut flops =
             n * self.node_encoder.flops_per_row() + e * self.edge_encoder.flops_per_row();
         flops += self.global_encoder.as_ref().map_or(0.0, Mlp::flops_per_row);
         for block in &self.blocks {
-            flops += e * block.edge.flops_per_row() + n * block.node.flops_per_row();
+            // Edge MLP: [g, n_i, n_j, e_ij] in; node MLP: [g, n_i, Σ e] in.
+            let [first, second, third] = &block.edge.layers;
+            let out = 2.0 * first.outputs as f64;
+            let width = (first.inputs as f64 - global) / 3.0;
+            flops += out * (global + 2.0 * n * width + e * width);
+            flops +=
+                e * 2.0 * (second.inputs * second.outputs + third.inputs * third.outputs) as f64;
+            let [first, second, third] = &block.node.layers;
+            let out = 2.0 * first.outputs as f64;
+            flops += out * (global + n * (first.inputs as f64 - global));
+            flops +=
+                n * 2.0 * (second.inputs * second.outputs + third.inputs * third.outputs) as f64;
         }
         flops += n * self.vector_head.flops_per_row();
         flops

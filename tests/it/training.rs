@@ -12,6 +12,8 @@ use treemanip::infer::{Backend, OnnxModel, init_backend};
 use treemanip::nn::gnn::{Connectivity, EdgeAttributes, GnnConfig, GnnOutput, GnnWeights};
 use treemanip::nn::model::{Arch, ModelWeights};
 use treemanip::nn::pointnet::{PointNetConfig, PointNetWeights, position_stats};
+use treemanip::nn::train::data::Targets;
+use treemanip::nn::train::step::descend;
 use treemanip::nn::train::{
     ResumeOptions, StopReason, TrainConfig, burn_forward, current_weights, read_best, read_state,
     resume, train,
@@ -290,5 +292,69 @@ fn resuming_a_checkpoint_continues_exactly() {
     assert_eq!(sa.samples, sb.samples);
     for (ra, rb) in sa.history.iter().zip(&sb.history) {
         assert!((ra.validation_loss - rb.validation_loss).abs() < 1e-6);
+    }
+}
+
+/// Targets for `graphs(task)` padded to `n`: made-up displacements, the
+/// last real node contacted, a made-up push.
+fn made_up_targets(padded: &Batch) -> Targets {
+    let (b, n) = (padded.batch, padded.n);
+    Targets {
+        displacement: (0..b * n * 3)
+            .map(|k| ((k % 7) as f32 - 3.0) * 0.01)
+            .collect(),
+        contact: (0..b)
+            .map(|g| {
+                padded.mask[g * n..(g + 1) * n]
+                    .iter()
+                    .filter(|&&m| m > 0.0)
+                    .count()
+                    - 1
+            })
+            .collect(),
+        push: (0..b * 3).map(|k| ((k % 5) as f32 - 2.0) * 0.02).collect(),
+    }
+}
+
+/// Training cuts each batch into one shard per core. The step must be the
+/// whole batch's step: the three graphs have 6, 9 and 14 real nodes, so
+/// shards weighted equally instead of by their share of the loss would
+/// move the outputs differently.
+#[test]
+fn sharded_steps_equal_the_whole_batch_step() {
+    for task in [Task::Forward, Task::Policy] {
+        for arch in [Arch::Gnn, Arch::PointNet] {
+            let model = random_model(task, arch, None);
+            let padded = batch(&graphs(task)).unwrap();
+            let targets = made_up_targets(&padded);
+            let before = model.forward(&padded).vectors;
+            let (loss_whole, whole) = descend(&model, &padded, &targets, 1, 0.05);
+            let moved = whole.forward(&padded).vectors;
+            let largest = before
+                .iter()
+                .zip(&moved)
+                .fold(0f32, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                largest > 1e-3,
+                "{}: the step moves the outputs",
+                model.describe()
+            );
+            for count in [2, 3, 7] {
+                let (loss, sharded) = descend(&model, &padded, &targets, count, 0.05);
+                assert!(
+                    (loss - loss_whole).abs() <= 1e-5 * loss_whole.abs(),
+                    "{} in {count} shards: loss {loss} vs {loss_whole}",
+                    model.describe()
+                );
+                let out = sharded.forward(&padded).vectors;
+                for (k, (a, b)) in moved.iter().zip(&out).enumerate() {
+                    assert!(
+                        (a - b).abs() <= 1e-3 * largest,
+                        "{} in {count} shards: output {k}: {a} vs {b}",
+                        model.describe()
+                    );
+                }
+            }
+        }
     }
 }

@@ -43,6 +43,17 @@ pub struct Targets {
     pub push: Vec<f32>,
 }
 
+impl Targets {
+    /// The targets of examples `range` of a batch padded to `n` nodes.
+    pub fn rows(&self, range: std::ops::Range<usize>, n: usize) -> Targets {
+        Targets {
+            displacement: self.displacement[range.start * n * 3..range.end * n * 3].to_vec(),
+            contact: self.contact[range.clone()].to_vec(),
+            push: self.push[range.start * 3..range.end * 3].to_vec(),
+        }
+    }
+}
+
 impl Examples {
     /// Loads `train_N{n}.npz` for each size; `limit` caps the episodes per
     /// size (first ones in file order, for quick runs and tests).

@@ -31,6 +31,7 @@ pub mod data;
 mod memory;
 pub mod modules;
 mod objective;
+pub mod step;
 
 pub use self::memory::keep_freed_pages;
 
@@ -39,7 +40,7 @@ use std::time::Instant;
 
 use anyhow::bail;
 use burn::module::Module;
-use burn::optim::{AdamConfig, GradientsParams};
+use burn::optim::AdamConfig;
 use burn::tensor::{Device, Tensor, TensorData};
 use serde::{Deserialize, Serialize};
 
@@ -51,7 +52,7 @@ pub use self::checkpoint::{
 };
 use self::data::{Examples, Targets};
 use self::modules::{DeviceInput, Outputs, TrainGnn, TrainPointNet, values};
-use self::objective::{loss, validate};
+use self::objective::validate;
 use super::gnn::{Connectivity, EdgeAttributes, GnnConfig};
 use super::input::gnn_input;
 use super::model::{Arch, ModelWeights};
@@ -382,7 +383,6 @@ fn run<M: Net>(
             .map_err(|e| anyhow::anyhow!("loading the optimiser state: {e}"))?;
     }
     let task = config.task;
-    let scale = weights.output_scale();
     let save = |state: &TrainState, model: &M, optimizer: &burn::optim::ModuleOptimizer| {
         save_module(model, &dir.join(MODEL_FILE))?;
         let tmp = dir.join("optimizer.bpk.tmp");
@@ -415,15 +415,13 @@ fn run<M: Net>(
                 Vec::new()
             };
             let (batch, targets) = examples.batch_rotated(task, ids, &angles);
+            let shards = step::shards(&batch, &targets, rayon::current_num_threads());
             let progress = (state.epoch as f64 + state.batch as f64 / batches.len() as f64)
                 / state.config.epochs as f64;
             rate = config
                 .schedule
                 .rate(&state.config, state.learning_rate, progress);
-            let out = model.run(&device_input(&weights, &batch, &device));
-            let l = loss(task, out, &batch, &targets, &scale, &device);
-            let value = l.clone().into_scalar::<f32>() as f64;
-            let grads = GradientsParams::from_grads(l.backward(), &model);
+            let (value, grads) = step::gradients(&model, &weights, &shards, &device);
             model = optimizer.step(rate, model, grads);
             state.batch += 1;
             state.samples += ids.len() as u64;
@@ -498,8 +496,9 @@ pub fn burn_forward(weights: &ModelWeights, batch: &Batch) -> super::gnn::GnnOut
     }
 }
 
-/// Runs `steps` optimisation steps on one fixed batch and returns the
-/// seconds they took, excluding batch preparation: for the training
+/// Runs `steps` optimisation steps on one fixed batch, as `train` runs
+/// them (one shard per core), and returns the seconds spent cutting the
+/// batch into shards and the seconds the steps took: for the training
 /// throughput benchmark.
 pub fn time_steps(
     weights: &ModelWeights,
@@ -516,15 +515,12 @@ pub fn time_steps(
         let device = Device::flex().autodiff();
         let mut model = M::build(weights, &device);
         let mut optimizer = AdamConfig::new().init();
-        let scale = weights.output_scale();
         let prep = Instant::now();
-        let input = device_input(weights, batch, &device);
+        let shards = step::shards(batch, targets, rayon::current_num_threads());
         let prep = prep.elapsed().as_secs_f64();
         let started = Instant::now();
         for _ in 0..steps {
-            let out = model.run(&input);
-            let l = loss(weights.task(), out, batch, targets, &scale, &device);
-            let grads = GradientsParams::from_grads(l.backward(), &model);
+            let (_, grads) = step::gradients(&model, weights, &shards, &device);
             model = optimizer.step(1e-3, model, grads);
         }
         (prep, started.elapsed().as_secs_f64())

@@ -13,7 +13,18 @@ use super::{Net, device_input, tensor};
 use crate::graph::{Batch, Task};
 use crate::nn::model::ModelWeights;
 
-/// The loss of one batch (normalised units).
+/// What [`loss`] divides its sum by: the real node coordinates (forward
+/// model) or the examples (policy). Shards of a batch weight their losses
+/// by their share of it.
+pub(super) fn loss_denominator(task: Task, batch: &Batch) -> f64 {
+    match task {
+        Task::Forward => batch.mask.iter().map(|&m| m as f64).sum::<f64>() * 3.0,
+        Task::Policy => batch.batch as f64,
+    }
+}
+
+/// The loss of one batch (normalised units), a mean over
+/// [`loss_denominator`].
 pub(super) fn loss(
     task: Task,
     out: Outputs,
@@ -34,10 +45,9 @@ pub(super) fn loss(
         Task::Forward => {
             let target = tensor(norm(&targets.displacement), [b, n, 3], device);
             let mask = tensor(batch.mask.clone(), [b, n, 1], device);
-            let count = batch.mask.iter().sum::<f32>() * 3.0;
             ((out.vectors - target).square() * mask)
                 .sum()
-                .div_scalar(count)
+                .div_scalar(loss_denominator(task, batch) as f32)
         }
         Task::Policy => {
             let mut onehot = vec![0.0f32; b * n];
@@ -50,7 +60,7 @@ pub(super) fn loss(
             let masked = logits + (mask - 1.0).mul_scalar(1e9);
             let ce = -(log_softmax(masked, 1) * onehot.clone())
                 .sum()
-                .div_scalar(b as f32);
+                .div_scalar(loss_denominator(task, batch) as f32);
             let at_contact: Tensor<2> = (out.vectors * onehot.unsqueeze_dim::<3>(2))
                 .sum_dim(1)
                 .reshape([b, 3]);
