@@ -189,7 +189,7 @@ pub enum StopReason {
 }
 
 /// A network burn can train.
-pub(crate) trait Net: Module + Sized {
+pub(crate) trait Net: Module + Sized + Sync {
     fn build(weights: &ModelWeights, device: &Device) -> Self;
     fn run(&self, input: &DeviceInput) -> Outputs;
     fn weights(&self, initial: &ModelWeights) -> ModelWeights;

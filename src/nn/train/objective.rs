@@ -6,6 +6,7 @@
 
 use burn::tensor::activation::log_softmax;
 use burn::tensor::{Device, Tensor};
+use rayon::prelude::*;
 
 use super::data::{Examples, Targets};
 use super::modules::{Outputs, values};
@@ -82,55 +83,68 @@ pub(super) fn validate<M: Net>(
     let model = model.valid();
     let task = weights.task();
     let scale = weights.output_scale();
-    let (mut loss_sum, mut error_sum, mut correct, mut count, mut batches) =
-        (0.0, 0.0, 0usize, 0usize, 0usize);
-    for ids in examples.validation_batches(batch_size) {
-        let (batch, targets) = examples.batch(task, &ids);
-        let out = model.run(&device_input(weights, &batch, &device));
-        let vectors = values(out.vectors.clone());
-        let logits = out.logits.clone().map(values);
-        loss_sum += loss(task, out, &batch, &targets, &scale, &device).into_scalar::<f32>() as f64;
-        batches += 1;
-        let n = batch.n;
-        let denorm = |k: usize, c: usize| vectors[k * 3 + c] as f64 * scale.1[c] + scale.0[c];
-        for g in 0..batch.batch {
-            count += 1;
-            match task {
-                Task::Forward => {
-                    let mut worst = 0.0f64;
-                    for j in 0..n {
-                        if batch.mask[g * n + j] == 0.0 {
-                            continue;
+    // Batches run in parallel (element-wise ops are single-threaded in
+    // burn-flex) and are summed in order, so the result is deterministic.
+    let partials: Vec<(f64, f64, usize, usize)> = examples
+        .validation_batches(batch_size)
+        .par_iter()
+        .map(|ids| {
+            let (batch, targets) = examples.batch(task, ids);
+            let out = model.run(&device_input(weights, &batch, &device));
+            let vectors = values(out.vectors.clone());
+            let logits = out.logits.clone().map(values);
+            let loss =
+                loss(task, out, &batch, &targets, &scale, &device).into_scalar::<f32>() as f64;
+            let (mut error_sum, mut correct) = (0.0, 0usize);
+            let n = batch.n;
+            let denorm = |k: usize, c: usize| vectors[k * 3 + c] as f64 * scale.1[c] + scale.0[c];
+            for g in 0..batch.batch {
+                match task {
+                    Task::Forward => {
+                        let mut worst = 0.0f64;
+                        for j in 0..n {
+                            if batch.mask[g * n + j] == 0.0 {
+                                continue;
+                            }
+                            let e: f64 = (0..3)
+                                .map(|c| {
+                                    let d = denorm(g * n + j, c)
+                                        - targets.displacement[(g * n + j) * 3 + c] as f64;
+                                    d * d
+                                })
+                                .sum();
+                            worst = worst.max(e.sqrt());
                         }
+                        error_sum += worst;
+                    }
+                    Task::Policy => {
+                        let c = targets.contact[g];
                         let e: f64 = (0..3)
-                            .map(|c| {
-                                let d = denorm(g * n + j, c)
-                                    - targets.displacement[(g * n + j) * 3 + c] as f64;
+                            .map(|k| {
+                                let d = denorm(g * n + c, k) - targets.push[g * 3 + k] as f64;
                                 d * d
                             })
                             .sum();
-                        worst = worst.max(e.sqrt());
+                        error_sum += e.sqrt();
+                        let row = &logits.as_ref().expect("policy logits")[g * n..(g + 1) * n];
+                        let best = (0..n)
+                            .filter(|&j| batch.mask[g * n + j] > 0.0)
+                            .max_by(|&a, &b| row[a].total_cmp(&row[b]))
+                            .unwrap_or(0);
+                        correct += usize::from(best == c);
                     }
-                    error_sum += worst;
-                }
-                Task::Policy => {
-                    let c = targets.contact[g];
-                    let e: f64 = (0..3)
-                        .map(|k| {
-                            let d = denorm(g * n + c, k) - targets.push[g * 3 + k] as f64;
-                            d * d
-                        })
-                        .sum();
-                    error_sum += e.sqrt();
-                    let row = &logits.as_ref().expect("policy logits")[g * n..(g + 1) * n];
-                    let best = (0..n)
-                        .filter(|&j| batch.mask[g * n + j] > 0.0)
-                        .max_by(|&a, &b| row[a].total_cmp(&row[b]))
-                        .unwrap_or(0);
-                    correct += usize::from(best == c);
                 }
             }
-        }
+            (loss, error_sum, correct, batch.batch)
+        })
+        .collect();
+    let batches = partials.len();
+    let (mut loss_sum, mut error_sum, mut correct, mut count) = (0.0, 0.0, 0usize, 0usize);
+    for (l, e, c, k) in partials {
+        loss_sum += l;
+        error_sum += e;
+        correct += c;
+        count += k;
     }
     let accuracy = (task == Task::Policy).then(|| correct as f64 / count.max(1) as f64);
     (
