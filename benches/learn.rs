@@ -102,28 +102,35 @@ fn training() {
                 contact: (0..128).map(|k| 1 + k % (n - 1)).collect(),
                 push: (0..128 * 3).map(|k| (k % 5) as f32 * 0.02).collect(),
             };
-            let _ = time_steps(&weights, &b, &targets, 1); // warm-up
+            let cores = rayon::current_num_threads();
             let steps = if arch == Arch::Gnn { 4 } else { 20 };
-            let (prep, secs) = time_steps(&weights, &b, &targets, steps);
-            let samples_per_second = (128 * steps) as f64 / secs;
-            let compute = match &weights {
-                ModelWeights::Gnn(w) => {
-                    let gflops = samples_per_second * 3.0 * w.flops_per_graph(n) / 1e9;
-                    format!(
-                        "  {gflops:.1} GFLOP/s = {:.0} % of peak",
-                        100.0 * gflops / peak
-                    )
-                }
-                ModelWeights::PointNet(_) => String::new(),
-            };
-            println!(
-                "  {:<8} {:<9} N={n:<3} {:>7.1} samples/s  ({:.0} ms/step, input prep {:.1} ms){compute}",
-                task.name(),
-                arch.name(),
-                samples_per_second,
-                1e3 * secs / steps as f64,
-                1e3 * prep
-            );
+            // The recipe's step (one shard per core), then the whole batch
+            // on the calling thread (matrix products still on every core):
+            // the step before data-parallel training.
+            for shards in [cores, 1] {
+                let _ = time_steps(&weights, &b, &targets, 1, shards); // warm-up
+                let (prep, secs) = time_steps(&weights, &b, &targets, steps, shards);
+                let samples_per_second = (128 * steps) as f64 / secs;
+                let compute = match &weights {
+                    ModelWeights::Gnn(w) => {
+                        let gflops = samples_per_second * 3.0 * w.flops_per_graph(n) / 1e9;
+                        format!(
+                            "  {gflops:.1} GFLOP/s = {:.0} % of peak",
+                            100.0 * gflops / peak
+                        )
+                    }
+                    ModelWeights::PointNet(_) => String::new(),
+                };
+                println!(
+                    "  {:<8} {:<9} N={n:<3} {shards} shard{} {:>7.1} samples/s  ({:.0} ms/step, shard prep {:.1} ms){compute}",
+                    task.name(),
+                    arch.name(),
+                    if shards == 1 { " " } else { "s" },
+                    samples_per_second,
+                    1e3 * secs / steps as f64,
+                    1e3 * prep
+                );
+            }
         }
     }
 }

@@ -496,27 +496,29 @@ pub fn burn_forward(weights: &ModelWeights, batch: &Batch) -> super::gnn::GnnOut
     }
 }
 
-/// Runs `steps` optimisation steps on one fixed batch, as `train` runs
-/// them (one shard per core), and returns the seconds spent cutting the
-/// batch into shards and the seconds the steps took: for the training
+/// Runs `steps` optimisation steps on one fixed batch cut into `shards`
+/// shards (`train` uses one per core) and returns the seconds spent
+/// cutting the batch and the seconds the steps took: for the training
 /// throughput benchmark.
 pub fn time_steps(
     weights: &ModelWeights,
     batch: &Batch,
     targets: &Targets,
     steps: usize,
+    shards: usize,
 ) -> (f64, f64) {
     fn go<M: Net>(
         weights: &ModelWeights,
         batch: &Batch,
         targets: &Targets,
         steps: usize,
+        count: usize,
     ) -> (f64, f64) {
         let device = Device::flex().autodiff();
         let mut model = M::build(weights, &device);
         let mut optimizer = AdamConfig::new().init();
         let prep = Instant::now();
-        let shards = step::shards(batch, targets, rayon::current_num_threads());
+        let shards = step::shards(batch, targets, count);
         let prep = prep.elapsed().as_secs_f64();
         let started = Instant::now();
         for _ in 0..steps {
@@ -526,7 +528,7 @@ pub fn time_steps(
         (prep, started.elapsed().as_secs_f64())
     }
     match weights.arch() {
-        Arch::Gnn => go::<TrainGnn>(weights, batch, targets, steps),
-        Arch::PointNet => go::<TrainPointNet>(weights, batch, targets, steps),
+        Arch::Gnn => go::<TrainGnn>(weights, batch, targets, steps, shards),
+        Arch::PointNet => go::<TrainPointNet>(weights, batch, targets, steps, shards),
     }
 }
