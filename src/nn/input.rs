@@ -108,20 +108,27 @@ impl EdgeAttributes {
 
     /// "dp+v+ks", "v+ks", "none", ...
     pub fn label(&self) -> String {
-        let parts: Vec<&str> = [
-            (self.delta_p, "dp"),
-            (self.orientation, "v"),
-            (self.stiffness, "ks"),
-        ]
-        .iter()
-        .filter(|(on, _)| *on)
-        .map(|(_, name)| *name)
-        .collect();
+        let parts = self.names(false);
         if parts.is_empty() {
             "none".to_owned()
         } else {
             parts.join("+")
         }
+    }
+
+    /// The attributes used, in edge-vector order: as `--edge-attributes`
+    /// spells them (`dp`, `v`, `ks`) or, with `display`, as the paper does
+    /// (`Δp`, `v`, `K_s`).
+    pub fn names(&self, display: bool) -> Vec<&'static str> {
+        [
+            (self.delta_p, "dp", "Δp"),
+            (self.orientation, "v", "v"),
+            (self.stiffness, "ks", "K_s"),
+        ]
+        .iter()
+        .filter(|(on, _, _)| *on)
+        .map(|&(_, code, shown)| if display { shown } else { code })
+        .collect()
     }
 }
 

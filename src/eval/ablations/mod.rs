@@ -50,16 +50,7 @@ pub struct Variant {
 impl Variant {
     /// How the table names it: `[Δp, K_s]`, `branches only, 10 layers`.
     pub fn label(&self) -> String {
-        let a = self.edge_attributes;
-        let names: Vec<&str> = [
-            (a.delta_p, "Δp"),
-            (a.orientation, "v"),
-            (a.stiffness, "K_s"),
-        ]
-        .iter()
-        .filter(|(on, _)| *on)
-        .map(|(_, name)| *name)
-        .collect();
+        let names = self.edge_attributes.names(true);
         let attributes = if names.is_empty() {
             "none".to_owned()
         } else {

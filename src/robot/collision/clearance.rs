@@ -181,7 +181,8 @@ impl CollisionModel {
                 span = span.min(d / rate);
             }
         }
-        if let Some((pair, rate)) = rates.limiting.get() {
+        let hinted = rates.limiting.get();
+        if let Some((pair, rate)) = hinted {
             let d = pair.distance(&world, tree);
             if d < min_clearance {
                 return None;
@@ -197,6 +198,10 @@ impl CollisionModel {
         let mut pending: smallvec::SmallVec<[(f64, f64, Pair); 64]> = Default::default();
         let min_clearance_squared = min_clearance * min_clearance;
         let mut consider = |lower_squared: f64, rate: f64, pair: Pair| {
+            if hinted.is_some_and(|(h, _)| h == pair) {
+                // Measured exactly above; the span already allows it.
+                return;
+            }
             if lower_squared < min_clearance_squared {
                 pending.push((-1.0, rate, pair));
             } else {
@@ -275,7 +280,7 @@ impl CollisionModel {
 
 /// A pair of shapes whose distance may limit the span: an arm shape and a
 /// branch or fixed obstacle (by index), or two arm shapes.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 enum Pair {
     Branch(usize, usize),
     Fixed(usize, usize),
