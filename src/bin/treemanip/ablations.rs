@@ -129,11 +129,7 @@ pub fn eval_ablations(args: EvalAblationsArgs) -> anyhow::Result<()> {
         .with_context(|| format!("creating {}", args.out.display()))?;
     let markdown = format!(
         "# Ablations (the paper's Table I)\n\nRegenerate: `{}`\n\n{}",
-        config.template.command.replacen(
-            std::env::args().next().as_deref().unwrap_or("treemanip"),
-            "treemanip",
-            1
-        ),
+        regenerate_command(&config.template.command),
         to_markdown(&status, args.seed)
     );
     std::fs::write(args.out.join("ablations.md"), &markdown)?;
@@ -154,4 +150,40 @@ pub fn eval_ablations(args: EvalAblationsArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// The study's command as the table shows it: the binary as `treemanip`
+/// and without this invocation's `--minutes` (a session's share, not part
+/// of the study).
+fn regenerate_command(command: &str) -> String {
+    let mut words = command.split_whitespace();
+    let mut out = vec!["treemanip".to_owned()];
+    words.next();
+    while let Some(word) = words.next() {
+        if word == "--minutes" {
+            words.next();
+        } else if !word.starts_with("--minutes=") {
+            out.push(word.to_owned());
+        }
+    }
+    out.join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::regenerate_command;
+
+    #[test]
+    fn the_shown_command_drops_the_session_budget() {
+        assert_eq!(
+            regenerate_command(
+                "target/release/treemanip eval ablations --data data --minutes 150 --epochs 5"
+            ),
+            "treemanip eval ablations --data data --epochs 5"
+        );
+        assert_eq!(
+            regenerate_command("./treemanip eval ablations --minutes=30 --data d"),
+            "treemanip eval ablations --data d"
+        );
+    }
 }
