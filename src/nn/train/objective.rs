@@ -95,45 +95,12 @@ pub(super) fn validate<M: Net>(
             let logits = out.logits.clone().map(values);
             let loss =
                 loss(task, out, &batch, &targets, &scale, &device).into_scalar::<f32>() as f64;
+            let logits = logits.as_deref();
             let (mut error_sum, mut correct) = (0.0, 0usize);
-            let n = batch.n;
-            let denorm = |k: usize, c: usize| vectors[k * 3 + c] as f64 * scale.1[c] + scale.0[c];
             for g in 0..batch.batch {
-                match task {
-                    Task::Forward => {
-                        let mut worst = 0.0f64;
-                        for j in 0..n {
-                            if batch.mask[g * n + j] == 0.0 {
-                                continue;
-                            }
-                            let e: f64 = (0..3)
-                                .map(|c| {
-                                    let d = denorm(g * n + j, c)
-                                        - targets.displacement[(g * n + j) * 3 + c] as f64;
-                                    d * d
-                                })
-                                .sum();
-                            worst = worst.max(e.sqrt());
-                        }
-                        error_sum += worst;
-                    }
-                    Task::Policy => {
-                        let c = targets.contact[g];
-                        let e: f64 = (0..3)
-                            .map(|k| {
-                                let d = denorm(g * n + c, k) - targets.push[g * 3 + k] as f64;
-                                d * d
-                            })
-                            .sum();
-                        error_sum += e.sqrt();
-                        let row = &logits.as_ref().expect("policy logits")[g * n..(g + 1) * n];
-                        let best = (0..n)
-                            .filter(|&j| batch.mask[g * n + j] > 0.0)
-                            .max_by(|&a, &b| row[a].total_cmp(&row[b]))
-                            .unwrap_or(0);
-                        correct += usize::from(best == c);
-                    }
-                }
+                let (error, hit) = graph_score(task, &batch, &targets, &vectors, logits, &scale, g);
+                error_sum += error;
+                correct += usize::from(hit);
             }
             (loss, error_sum, correct, batch.batch)
         })
@@ -152,4 +119,54 @@ pub(super) fn validate<M: Net>(
         error_sum / count.max(1) as f64,
         accuracy,
     )
+}
+
+/// Graph `g`'s validation error (m) and, for the policy, whether its
+/// arg-max affordance is the contacted node: the forward model's largest
+/// node error, the policy's action error at the contacted node.
+fn graph_score(
+    task: Task,
+    batch: &Batch,
+    targets: &Targets,
+    vectors: &[f32],
+    logits: Option<&[f32]>,
+    scale: &([f64; 3], [f64; 3]),
+    g: usize,
+) -> (f64, bool) {
+    let n = batch.n;
+    let denorm = |k: usize, c: usize| vectors[k * 3 + c] as f64 * scale.1[c] + scale.0[c];
+    match task {
+        Task::Forward => {
+            let mut worst = 0.0f64;
+            for j in 0..n {
+                if batch.mask[g * n + j] == 0.0 {
+                    continue;
+                }
+                let e: f64 = (0..3)
+                    .map(|c| {
+                        let d =
+                            denorm(g * n + j, c) - targets.displacement[(g * n + j) * 3 + c] as f64;
+                        d * d
+                    })
+                    .sum();
+                worst = worst.max(e.sqrt());
+            }
+            (worst, false)
+        }
+        Task::Policy => {
+            let c = targets.contact[g];
+            let e: f64 = (0..3)
+                .map(|k| {
+                    let d = denorm(g * n + c, k) - targets.push[g * 3 + k] as f64;
+                    d * d
+                })
+                .sum();
+            let row = &logits.expect("policy logits")[g * n..(g + 1) * n];
+            let best = (0..n)
+                .filter(|&j| batch.mask[g * n + j] > 0.0)
+                .max_by(|&a, &b| row[a].total_cmp(&row[b]))
+                .unwrap_or(0);
+            (e.sqrt(), best == c)
+        }
+    }
 }
