@@ -182,13 +182,17 @@ impl GnnWeights {
     }
 }
 
+impl Linear {
+    /// Multiply-adds × 2 of one row.
+    pub fn flops_per_row(&self) -> f64 {
+        2.0 * (self.inputs * self.outputs) as f64
+    }
+}
+
 impl Mlp {
     /// Multiply-adds × 2 of one row through the three layers.
     pub fn flops_per_row(&self) -> f64 {
-        self.layers
-            .iter()
-            .map(|l| 2.0 * (l.inputs * l.outputs) as f64)
-            .sum()
+        self.layers.iter().map(Linear::flops_per_row).sum()
     }
 }
 
@@ -215,13 +219,11 @@ impl GnnWeights {
             let out = 2.0 * first.outputs as f64;
             let width = (first.inputs as f64 - global) / 3.0;
             flops += out * (global + 2.0 * n * width + e * width);
-            flops +=
-                e * 2.0 * (second.inputs * second.outputs + third.inputs * third.outputs) as f64;
+            flops += e * (second.flops_per_row() + third.flops_per_row());
             let [first, second, third] = &block.node.layers;
             let out = 2.0 * first.outputs as f64;
             flops += out * (global + n * (first.inputs as f64 - global));
-            flops +=
-                n * 2.0 * (second.inputs * second.outputs + third.inputs * third.outputs) as f64;
+            flops += n * (second.flops_per_row() + third.flops_per_row());
         }
         flops += n * self.vector_head.flops_per_row();
         flops

@@ -60,10 +60,9 @@ pub(super) fn gradients<M: Net>(
         .into_par_iter()
         .zip(shards.par_iter())
         .map(|(fork, (batch, targets))| {
-            let device = device.clone();
-            let out = fork.run(&device_input(weights, batch, &device));
+            let out = fork.run(&device_input(weights, batch, device));
             let share = loss_denominator(task, batch) / total;
-            let l = loss(task, out, batch, targets, &scale, &device).mul_scalar(share as f32);
+            let l = loss(task, out, batch, targets, &scale, device).mul_scalar(share as f32);
             let value = l.clone().into_scalar::<f32>() as f64;
             (value, GradientsParams::from_grads(l.backward(), &fork))
         })
