@@ -6,6 +6,7 @@
 //!
 //!     cargo bench --bench learn                  # training and inference
 //!     cargo bench --bench learn -- inference     # inference only
+//!     cargo bench --bench learn -- branches      # branch-only edge layouts only
 //!
 //! Prints numbers; asserts nothing.
 
@@ -18,11 +19,11 @@ use rand_chacha::ChaCha8Rng;
 use treemanip::graph::stats::StatsBuilder;
 use treemanip::graph::{GraphInput, Task, batch, encode_forward, encode_policy};
 use treemanip::infer::{OnnxModel, init_backend};
-use treemanip::nn::gnn::{GnnConfig, GnnWeights};
+use treemanip::nn::gnn::{Connectivity, GnnConfig, GnnWeights};
 use treemanip::nn::model::{Arch, ModelWeights};
 use treemanip::nn::pointnet::{PointNetConfig, PointNetWeights, position_stats};
 use treemanip::nn::train::data::Targets;
-use treemanip::nn::train::time_steps;
+use treemanip::nn::train::{EdgeLayout, time_steps};
 use treemanip::tree::{ScaParams, Tree, generate};
 
 /// The training binary's allocator and its setting
@@ -108,8 +109,9 @@ fn training() {
             // on the calling thread (matrix products still on every core):
             // the step before data-parallel training.
             for shards in [cores, 1] {
-                let _ = time_steps(&weights, &b, &targets, 1, shards); // warm-up
-                let (prep, secs) = time_steps(&weights, &b, &targets, steps, shards);
+                let layout = EdgeLayout::of(&weights);
+                let _ = time_steps(&weights, &b, &targets, 1, (shards, layout)); // warm-up
+                let (prep, secs) = time_steps(&weights, &b, &targets, steps, (shards, layout));
                 let samples_per_second = (128 * steps) as f64 / secs;
                 let compute = match &weights {
                     ModelWeights::Gnn(w) => {
@@ -132,6 +134,52 @@ fn training() {
                 );
             }
         }
+    }
+    branches();
+}
+
+/// The branch-only ablation models (forward GNN, N = 15): the same step
+/// with edges as the list of parent–child pairs that `train` uses for
+/// them, and on the masked N × N pairs.
+fn branches() {
+    println!("branch connectivity (forward GNN, N=15, batch 128, one shard per core)");
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let n = 15;
+    let tree = generate(n, 5, &ScaParams::default()).unwrap();
+    let gs = graphs(Task::Forward, &tree, 128, &mut rng);
+    let b = batch(&gs).unwrap();
+    let targets = Targets {
+        displacement: (0..128 * n * 3).map(|k| (k % 7) as f32 * 0.01).collect(),
+        contact: vec![1; 128],
+        push: vec![0.0; 128 * 3],
+    };
+    let cores = rayon::current_num_threads();
+    for layers in [5usize, 20] {
+        let mut weights = paper_model(Task::Forward, Arch::Gnn, &gs);
+        if let ModelWeights::Gnn(w) = &weights {
+            let mut config = w.config.clone();
+            config.layers = layers;
+            config.connectivity = Connectivity::Branches;
+            weights = ModelWeights::Gnn(GnnWeights::random(config, w.stats.clone(), 1));
+        }
+        let mut rates = Vec::new();
+        for layout in [EdgeLayout::List, EdgeLayout::Dense] {
+            let steps = 3;
+            let _ = time_steps(&weights, &b, &targets, 1, (cores, layout)); // warm-up
+            let (_, secs) = time_steps(&weights, &b, &targets, steps, (cores, layout));
+            let samples_per_second = (128 * steps) as f64 / secs;
+            rates.push(samples_per_second);
+            println!(
+                "  {layers:>2} layers  {:<5} {:>7.1} samples/s  ({:.0} ms/step)",
+                format!("{layout:?}").to_lowercase(),
+                samples_per_second,
+                1e3 * secs / steps as f64
+            );
+        }
+        println!(
+            "  {layers:>2} layers  list / dense = {:.2}×",
+            rates[0] / rates[1]
+        );
     }
 }
 
@@ -261,6 +309,11 @@ fn main() {
     let which = std::env::args().nth(1).unwrap_or_default();
     if which == "inference-child" {
         inference_child(std::env::var_os("ORT_DYLIB_PATH").map(std::path::PathBuf::from));
+        return;
+    }
+    if which == "branches" {
+        treemanip::nn::train::keep_freed_pages();
+        branches();
         return;
     }
     if which != "inference" {

@@ -15,8 +15,8 @@ use treemanip::nn::pointnet::{PointNetConfig, PointNetWeights, position_stats};
 use treemanip::nn::train::data::Targets;
 use treemanip::nn::train::step::descend;
 use treemanip::nn::train::{
-    ResumeOptions, StopReason, TrainConfig, burn_forward, current_weights, read_best, read_state,
-    resume, train,
+    EdgeLayout, ResumeOptions, StopReason, TrainConfig, burn_forward, current_weights, read_best,
+    read_state, resume, train,
 };
 use treemanip::tree::{ScaParams, generate};
 
@@ -106,17 +106,7 @@ fn burn_reference_and_onnx_agree_for_every_model() {
         models.push(random_model(task, Arch::Gnn, None));
         models.push(random_model(task, Arch::PointNet, None));
     }
-    models.push(random_model(
-        Task::Forward,
-        Arch::Gnn,
-        Some(GnnConfig {
-            hidden: 8,
-            layers: 3,
-            edge_attributes: "dp+ks".parse().unwrap(),
-            connectivity: Connectivity::Branches,
-            ..GnnConfig::paper(Task::Forward)
-        }),
-    ));
+    models.extend([Task::Forward, Task::Policy].map(branches_model));
     for model in &models {
         let task = model.task();
         let padded = batch(&graphs(task)).unwrap();
@@ -297,6 +287,21 @@ fn resuming_a_checkpoint_continues_exactly() {
 
 /// Targets for `graphs(task)` padded to `n`: made-up displacements, the
 /// last real node contacted, a made-up push.
+/// A small branch-connectivity GNN (trained on an edge list).
+fn branches_model(task: Task) -> ModelWeights {
+    random_model(
+        task,
+        Arch::Gnn,
+        Some(GnnConfig {
+            hidden: 8,
+            layers: 3,
+            edge_attributes: "dp+ks".parse().unwrap(),
+            connectivity: Connectivity::Branches,
+            ..GnnConfig::paper(task)
+        }),
+    )
+}
+
 fn made_up_targets(padded: &Batch) -> Targets {
     let (b, n) = (padded.batch, padded.n);
     Targets {
@@ -323,12 +328,16 @@ fn made_up_targets(padded: &Batch) -> Targets {
 #[test]
 fn sharded_steps_equal_the_whole_batch_step() {
     for task in [Task::Forward, Task::Policy] {
-        for arch in [Arch::Gnn, Arch::PointNet] {
-            let model = random_model(task, arch, None);
+        for model in [
+            random_model(task, Arch::Gnn, None),
+            random_model(task, Arch::PointNet, None),
+            branches_model(task),
+        ] {
             let padded = batch(&graphs(task)).unwrap();
             let targets = made_up_targets(&padded);
             let before = model.forward(&padded).vectors;
-            let (loss_whole, whole) = descend(&model, &padded, &targets, 1, 0.05);
+            let layout = EdgeLayout::of(&model);
+            let (loss_whole, whole) = descend(&model, &padded, &targets, (1, layout), 0.05);
             let moved = whole.forward(&padded).vectors;
             let largest = before
                 .iter()
@@ -340,7 +349,7 @@ fn sharded_steps_equal_the_whole_batch_step() {
                 model.describe()
             );
             for count in [2, 3, 7] {
-                let (loss, sharded) = descend(&model, &padded, &targets, count, 0.05);
+                let (loss, sharded) = descend(&model, &padded, &targets, (count, layout), 0.05);
                 assert!(
                     (loss - loss_whole).abs() <= 1e-5 * loss_whole.abs(),
                     "{} in {count} shards: loss {loss} vs {loss_whole}",
@@ -355,6 +364,41 @@ fn sharded_steps_equal_the_whole_batch_step() {
                     );
                 }
             }
+        }
+    }
+}
+
+/// Branch-connectivity models train on a list of the parent–child pairs
+/// instead of the masked N × N pairs; the step (loss and gradients) must
+/// be the same.
+#[test]
+fn edge_list_steps_equal_the_dense_step() {
+    for task in [Task::Forward, Task::Policy] {
+        let model = branches_model(task);
+        assert_eq!(EdgeLayout::of(&model), EdgeLayout::List);
+        let padded = batch(&graphs(task)).unwrap();
+        let targets = made_up_targets(&padded);
+        let before = model.forward(&padded).vectors;
+        let (loss_dense, dense) = descend(&model, &padded, &targets, (2, EdgeLayout::Dense), 0.05);
+        let (loss_list, list) = descend(&model, &padded, &targets, (2, EdgeLayout::List), 0.05);
+        assert!(
+            (loss_list - loss_dense).abs() <= 1e-5 * loss_dense.abs(),
+            "{task:?}: loss {loss_list} vs {loss_dense}"
+        );
+        let (a, b) = (
+            dense.forward(&padded).vectors,
+            list.forward(&padded).vectors,
+        );
+        let moved = before
+            .iter()
+            .zip(&a)
+            .fold(0f32, |m, (x, y)| m.max((x - y).abs()));
+        assert!(moved > 1e-3, "{task:?}: the step moves the outputs");
+        for (k, (x, y)) in a.iter().zip(&b).enumerate() {
+            assert!(
+                (x - y).abs() <= 1e-3 * moved,
+                "{task:?}: output {k}: {x} (dense) vs {y} (list)"
+            );
         }
     }
 }

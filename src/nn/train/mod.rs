@@ -28,11 +28,13 @@
 
 pub mod checkpoint;
 pub mod data;
+mod device;
 mod memory;
 pub mod modules;
 mod objective;
 pub mod step;
 
+pub use self::device::{EdgeLayout, device_input};
 pub use self::memory::keep_freed_pages;
 
 use std::path::{Path, PathBuf};
@@ -41,7 +43,7 @@ use std::time::Instant;
 use anyhow::bail;
 use burn::module::Module;
 use burn::optim::AdamConfig;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
 use serde::{Deserialize, Serialize};
 
 use self::checkpoint::{
@@ -54,9 +56,7 @@ use self::data::{Examples, Targets};
 use self::modules::{DeviceInput, Outputs, TrainGnn, TrainPointNet, values};
 use self::objective::validate;
 use super::gnn::{Connectivity, EdgeAttributes, GnnConfig};
-use super::input::gnn_input;
 use super::model::{Arch, ModelWeights};
-use super::pointnet::point_input;
 use crate::graph::{Batch, Task};
 
 /// How the learning rate moves.
@@ -231,46 +231,6 @@ impl Net for TrainPointNet {
     }
 }
 
-fn tensor<const D: usize>(values: Vec<f32>, shape: [usize; D], device: &Device) -> Tensor<D> {
-    Tensor::from_data(TensorData::new(values, shape), device)
-}
-
-/// The model-side inputs of a batch, on `device`.
-pub fn device_input(weights: &ModelWeights, batch: &Batch, device: &Device) -> DeviceInput {
-    let (b, n) = (batch.batch, batch.n);
-    let node_mask = tensor(batch.mask.clone(), [b, n], device);
-    match weights {
-        ModelWeights::Gnn(w) => {
-            let task = w.config.task;
-            let input = gnn_input(
-                batch,
-                &w.stats,
-                w.config.edge_attributes,
-                w.config.connectivity,
-            );
-            DeviceInput {
-                nodes: tensor(input.nodes, [b, n, task.node_dim()], device),
-                edges: Some(tensor(
-                    input.edges,
-                    [b, n, n, crate::graph::EDGE_DIM],
-                    device,
-                )),
-                global: (task.global_dim() > 0)
-                    .then(|| tensor(input.global, [b, task.global_dim()], device)),
-                edge_mask: Some(tensor(input.edge_mask, [b, n, n, 1], device)),
-                node_mask,
-            }
-        }
-        ModelWeights::PointNet(w) => DeviceInput {
-            nodes: tensor(point_input(w, batch), [b, n, w.config.point_dim()], device),
-            edges: None,
-            global: None,
-            edge_mask: None,
-            node_mask,
-        },
-    }
-}
-
 /// What may change when a run is resumed.
 #[derive(Debug, Clone, Default)]
 pub struct ResumeOptions {
@@ -421,7 +381,8 @@ fn run<M: Net>(
             rate = config
                 .schedule
                 .rate(&state.config, state.learning_rate, progress);
-            let (value, grads) = step::gradients(&model, &weights, &shards, &device);
+            let (value, grads) =
+                step::gradients(&model, &weights, &shards, EdgeLayout::of(&weights), &device);
             model = optimizer.step(rate, model, grads);
             state.batch += 1;
             state.samples += ids.len() as u64;
@@ -473,13 +434,10 @@ fn run<M: Net>(
 /// outputs in the same form as the reference pass: for parity tests.
 pub fn burn_forward(weights: &ModelWeights, batch: &Batch) -> super::gnn::GnnOutput {
     let device = Device::flex();
+    let input = device_input(weights, batch, EdgeLayout::of(weights), &device);
     let out = match weights {
-        ModelWeights::Gnn(_) => {
-            TrainGnn::build(weights, &device).run(&device_input(weights, batch, &device))
-        }
-        ModelWeights::PointNet(_) => {
-            TrainPointNet::build(weights, &device).run(&device_input(weights, batch, &device))
-        }
+        ModelWeights::Gnn(_) => TrainGnn::build(weights, &device).run(&input),
+        ModelWeights::PointNet(_) => TrainPointNet::build(weights, &device).run(&input),
     };
     let (mean, std) = weights.output_scale();
     let vectors = values(out.vectors)
@@ -497,22 +455,22 @@ pub fn burn_forward(weights: &ModelWeights, batch: &Batch) -> super::gnn::GnnOut
 }
 
 /// Runs `steps` optimisation steps on one fixed batch cut into `shards`
-/// shards (`train` uses one per core) and returns the seconds spent
-/// cutting the batch and the seconds the steps took: for the training
-/// throughput benchmark.
+/// shards (`train` uses one per core), edges laid out as `layout`, and
+/// returns the seconds spent cutting the batch and the seconds the steps
+/// took: for the training throughput benchmark.
 pub fn time_steps(
     weights: &ModelWeights,
     batch: &Batch,
     targets: &Targets,
     steps: usize,
-    shards: usize,
+    (shards, layout): (usize, EdgeLayout),
 ) -> (f64, f64) {
     fn go<M: Net>(
         weights: &ModelWeights,
         batch: &Batch,
         targets: &Targets,
         steps: usize,
-        count: usize,
+        (count, layout): (usize, EdgeLayout),
     ) -> (f64, f64) {
         let device = Device::flex().autodiff();
         let mut model = M::build(weights, &device);
@@ -522,13 +480,13 @@ pub fn time_steps(
         let prep = prep.elapsed().as_secs_f64();
         let started = Instant::now();
         for _ in 0..steps {
-            let (_, grads) = step::gradients(&model, weights, &shards, &device);
+            let (_, grads) = step::gradients(&model, weights, &shards, layout, &device);
             model = optimizer.step(1e-3, model, grads);
         }
         (prep, started.elapsed().as_secs_f64())
     }
     match weights.arch() {
-        Arch::Gnn => go::<TrainGnn>(weights, batch, targets, steps, shards),
-        Arch::PointNet => go::<TrainPointNet>(weights, batch, targets, steps, shards),
+        Arch::Gnn => go::<TrainGnn>(weights, batch, targets, steps, (shards, layout)),
+        Arch::PointNet => go::<TrainPointNet>(weights, batch, targets, steps, (shards, layout)),
     }
 }

@@ -10,7 +10,7 @@
 use burn::module::{Module, Param};
 use burn::nn::Linear as BurnLinear;
 use burn::tensor::activation::relu;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, IndexingUpdateOp, Int, Tensor, TensorData};
 
 use crate::nn::gnn::{Block, GnnWeights, Linear, Mlp};
 use crate::nn::pointnet::PointNetWeights;
@@ -163,14 +163,31 @@ pub struct Outputs {
 pub struct DeviceInput {
     /// [B, N, d]: GNN node attributes, or PointNet point features.
     pub nodes: Tensor<3>,
-    /// [B, N, N, 5] (GNN only).
-    pub edges: Option<Tensor<4>>,
+    /// GNN only.
+    pub edges: Option<Edges>,
     /// [B, 3] (GNN forward model only).
     pub global: Option<Tensor<2>>,
-    /// [B, N, N, 1] (GNN only).
-    pub edge_mask: Option<Tensor<4>>,
     /// [B, N].
     pub node_mask: Tensor<2>,
+}
+
+/// A GNN's edges on the device (see [`super::EdgeLayout`]).
+pub enum Edges {
+    /// Every pair: attributes [B, N, N, 5] and a mask [B, N, N, 1] that is
+    /// 1 where i → j carries a message.
+    Dense {
+        attributes: Tensor<4>,
+        mask: Tensor<4>,
+    },
+    /// Only the E pairs that carry messages, over the whole batch:
+    /// attributes [E, 5], sender and receiver as flat node indices
+    /// (g · N + i) and the graph g of each pair.
+    List {
+        attributes: Tensor<2>,
+        sender: Tensor<1, Int>,
+        receiver: Tensor<1, Int>,
+        graph: Tensor<1, Int>,
+    },
 }
 
 #[derive(Module, Debug)]
@@ -225,16 +242,40 @@ impl TrainGnn {
 
     pub fn forward(&self, input: &DeviceInput) -> Outputs {
         let [b, n, _] = input.nodes.dims();
-        let edges = input.edges.clone().expect("GNN input has edges");
-        let edge_mask = input.edge_mask.clone().expect("GNN input has an edge mask");
-        let mut hn = self.node_encoder.forward(input.nodes.clone());
-        let mut he = self.edge_encoder.forward(edges);
+        let hn = self.node_encoder.forward(input.nodes.clone());
         let hg = match (&self.global_encoder, &input.global) {
             (Some(enc), Some(g)) => Some(enc.forward(g.clone())),
             _ => None,
         };
-        let h = hn.dims()[2];
+        let hn = match input.edges.as_ref().expect("GNN input has edges") {
+            Edges::Dense { attributes, mask } => self.pass_dense(hn, hg.as_ref(), attributes, mask),
+            Edges::List {
+                attributes,
+                sender,
+                receiver,
+                graph,
+            } => self.pass_list(hn, hg.as_ref(), attributes, [sender, receiver, graph]),
+        };
+        Outputs {
+            vectors: self.vector_head.forward(hn.clone()),
+            logits: self
+                .affordance_head
+                .as_ref()
+                .map(|head| head.forward(hn).reshape([b, n])),
+        }
+    }
+
+    /// The graph2graph blocks on dense edges: node embeddings after them.
+    fn pass_dense(
+        &self,
+        mut hn: Tensor<3>,
+        hg: Option<&Tensor<2>>,
+        attributes: &Tensor<4>,
+        mask: &Tensor<4>,
+    ) -> Tensor<3> {
+        let [b, n, h] = hn.dims();
         let g0 = if hg.is_some() { h } else { 0 };
+        let mut he = self.edge_encoder.forward(attributes.clone());
         for block in &self.blocks {
             let sender = block
                 .edge
@@ -246,7 +287,7 @@ impl TrainGnn {
                 .unsqueeze_dim::<4>(1);
             let mut pre = block.edge.first_part(he.clone(), g0 + 2 * h, g0 + 3 * h);
             pre = pre + sender + receiver;
-            if let Some(hg) = &hg {
+            if let Some(hg) = hg {
                 pre = pre
                     + block
                         .edge
@@ -254,25 +295,68 @@ impl TrainGnn {
                         .reshape([b, 1, 1, h]);
             }
             let new_e = block.edge.tail(block.edge.first_bias(pre));
-            let aggregated: Tensor<3> = (new_e.clone() * edge_mask.clone())
-                .sum_dim(1)
-                .reshape([b, n, h]);
-            let mut npre = block.node.first_part(hn.clone(), g0, g0 + h)
-                + block.node.first_part(aggregated, g0 + h, g0 + 2 * h);
-            if let Some(hg) = &hg {
-                npre = npre + block.node.first_part(hg.clone(), 0, h).reshape([b, 1, h]);
-            }
-            let new_n = block.node.tail(block.node.first_bias(npre));
-            hn = hn + new_n;
+            let aggregated: Tensor<3> =
+                (new_e.clone() * mask.clone()).sum_dim(1).reshape([b, n, h]);
+            hn = hn.clone() + block.update_nodes(hn, aggregated, hg, g0);
             he = he + new_e;
         }
-        Outputs {
-            vectors: self.vector_head.forward(hn.clone()),
-            logits: self
-                .affordance_head
-                .as_ref()
-                .map(|head| head.forward(hn).reshape([b, n])),
+        hn
+    }
+
+    /// The graph2graph blocks on a list of edges `[sender, receiver,
+    /// graph]`: node embeddings after them.
+    fn pass_list(
+        &self,
+        mut hn: Tensor<3>,
+        hg: Option<&Tensor<2>>,
+        attributes: &Tensor<2>,
+        [sender, receiver, graph]: [&Tensor<1, Int>; 3],
+    ) -> Tensor<3> {
+        let [b, n, h] = hn.dims();
+        let g0 = if hg.is_some() { h } else { 0 };
+        let mut he = self.edge_encoder.forward(attributes.clone());
+        let device = hn.device();
+        for block in &self.blocks {
+            let flat = hn.clone().reshape([b * n, h]);
+            let from = block.edge.first_part(flat.clone(), g0, g0 + h);
+            let to = block.edge.first_part(flat, g0 + h, g0 + 2 * h);
+            let mut pre = block.edge.first_part(he.clone(), g0 + 2 * h, g0 + 3 * h)
+                + from.select(0, sender.clone())
+                + to.select(0, receiver.clone());
+            if let Some(hg) = hg {
+                pre = pre
+                    + block
+                        .edge
+                        .first_part(hg.clone(), 0, h)
+                        .select(0, graph.clone());
+            }
+            let new_e = block.edge.tail(block.edge.first_bias(pre));
+            let aggregated = Tensor::<2>::zeros([b * n, h], &device)
+                .select_assign(0, receiver.clone(), new_e.clone(), IndexingUpdateOp::Add)
+                .reshape([b, n, h]);
+            hn = hn.clone() + block.update_nodes(hn, aggregated, hg, g0);
+            he = he + new_e;
         }
+        hn
+    }
+}
+
+impl TrainBlock {
+    /// The node MLP on [g, n_i, Σ_j e_ji]: the residual update of the nodes.
+    fn update_nodes(
+        &self,
+        hn: Tensor<3>,
+        aggregated: Tensor<3>,
+        hg: Option<&Tensor<2>>,
+        g0: usize,
+    ) -> Tensor<3> {
+        let [b, _, h] = hn.dims();
+        let mut pre = self.node.first_part(hn, g0, g0 + h)
+            + self.node.first_part(aggregated, g0 + h, g0 + 2 * h);
+        if let Some(hg) = hg {
+            pre = pre + self.node.first_part(hg.clone(), 0, h).reshape([b, 1, h]);
+        }
+        self.node.tail(self.node.first_bias(pre))
     }
 }
 

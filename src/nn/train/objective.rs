@@ -9,8 +9,9 @@ use burn::tensor::{Device, Tensor};
 use rayon::prelude::*;
 
 use super::data::{Examples, Targets};
+use super::device::tensor;
 use super::modules::{Outputs, values};
-use super::{Net, device_input, tensor};
+use super::{EdgeLayout, Net, device_input};
 use crate::graph::{Batch, Task};
 use crate::nn::model::ModelWeights;
 
@@ -90,7 +91,12 @@ pub(super) fn validate<M: Net>(
         .par_iter()
         .map(|ids| {
             let (batch, targets) = examples.batch(task, ids);
-            let out = model.run(&device_input(weights, &batch, &device));
+            let out = model.run(&device_input(
+                weights,
+                &batch,
+                EdgeLayout::of(weights),
+                &device,
+            ));
             let vectors = values(out.vectors.clone());
             let logits = out.logits.clone().map(values);
             let loss =

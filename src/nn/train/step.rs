@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use super::data::Targets;
 use super::modules::{TrainGnn, TrainPointNet};
 use super::objective::{loss, loss_denominator};
-use super::{Net, device_input};
+use super::{EdgeLayout, Net, device_input};
 use crate::graph::Batch;
 use crate::nn::model::{Arch, ModelWeights};
 
@@ -47,6 +47,7 @@ pub(super) fn gradients<M: Net>(
     model: &M,
     weights: &ModelWeights,
     shards: &[(Batch, Targets)],
+    layout: EdgeLayout,
     device: &Device,
 ) -> (f64, GradientsParams) {
     let task = weights.task();
@@ -60,7 +61,7 @@ pub(super) fn gradients<M: Net>(
         .into_par_iter()
         .zip(shards.par_iter())
         .map(|(fork, (batch, targets))| {
-            let out = fork.run(&device_input(weights, batch, device));
+            let out = fork.run(&device_input(weights, batch, layout, device));
             let share = loss_denominator(task, batch) / total;
             let l = loss(task, out, batch, targets, &scale, device).mul_scalar(share as f32);
             let value = l.clone().into_scalar::<f32>() as f64;
@@ -77,30 +78,32 @@ pub(super) fn gradients<M: Net>(
 }
 
 /// One plain gradient-descent step (w − rate · ∇loss) on `batch` cut into
-/// `count` shards: the loss before the step and the weights after it. For
-/// tests: sharding must not change the step.
+/// `count` shards, edges laid out as `layout`: the loss before the step and
+/// the weights after it. For tests: neither sharding nor the layout may
+/// change the step.
 pub fn descend(
     weights: &ModelWeights,
     batch: &Batch,
     targets: &Targets,
-    count: usize,
+    (count, layout): (usize, EdgeLayout),
     rate: f64,
 ) -> (f64, ModelWeights) {
     fn go<M: Net>(
         weights: &ModelWeights,
         batch: &Batch,
         targets: &Targets,
-        count: usize,
+        (count, layout): (usize, EdgeLayout),
         rate: f64,
     ) -> (f64, ModelWeights) {
         let device = Device::flex().autodiff();
         let model = M::build(weights, &device);
-        let (value, grads) = gradients(&model, weights, &shards(batch, targets, count), &device);
+        let shards = shards(batch, targets, count);
+        let (value, grads) = gradients(&model, weights, &shards, layout, &device);
         let model = SgdConfig::new().init().step(rate, model, grads);
         (value, model.weights(weights))
     }
     match weights.arch() {
-        Arch::Gnn => go::<TrainGnn>(weights, batch, targets, count, rate),
-        Arch::PointNet => go::<TrainPointNet>(weights, batch, targets, count, rate),
+        Arch::Gnn => go::<TrainGnn>(weights, batch, targets, (count, layout), rate),
+        Arch::PointNet => go::<TrainPointNet>(weights, batch, targets, (count, layout), rate),
     }
 }
