@@ -414,7 +414,11 @@ fn run<M: Net>(
             save_module(&model, &dir.join(BEST_FILE))?;
         } else {
             state.epochs_without_improvement += 1;
-            if state.epochs_without_improvement >= config.patience {
+            // Only the plateau schedule reads this rate; under the cosine
+            // it would drift down and show a rate that is not in use.
+            if config.schedule == Schedule::Plateau
+                && state.epochs_without_improvement >= config.patience
+            {
                 state.learning_rate = (state.learning_rate * 0.5).max(config.min_learning_rate);
                 state.epochs_without_improvement = 0;
             }

@@ -172,6 +172,7 @@ pub struct DeviceInput {
 }
 
 /// A GNN's edges on the device (see [`super::EdgeLayout`]).
+#[allow(clippy::large_enum_variant)] // one per batch, built once: boxing buys nothing
 pub enum Edges {
     /// Every pair: attributes [B, N, N, 5] and a mask [B, N, N, 1] that is
     /// 1 where i → j carries a message.
