@@ -10,6 +10,7 @@ use serde::Serialize;
 
 use super::predict::{Predictor, max_node_error};
 use crate::infer::InferError;
+use crate::nn::domain::Margin;
 use crate::sim::Push;
 use crate::sim::sampling::standard_normal;
 use crate::tree::Tree;
@@ -68,6 +69,21 @@ fn clamp_length(v: Vector3<f64>) -> Option<Vector3<f64>> {
     (length.is_finite() && length > 1e-9).then(|| v * (length.clamp(MIN_PUSH, MAX_PUSH) / length))
 }
 
+/// The policy's own push T_j unchanged when the forward model answers for
+/// its length (`nn::domain` reaches a factor [`Margin::push_factor`] below
+/// the shortest trained push), else clamped into the trained range: a
+/// short push the policy asks for is scored as it is, so the search never
+/// does worse than executing the policy's pick.
+fn own_push(v: Vector3<f64>) -> Option<Vector3<f64>> {
+    let length = v.norm();
+    let shortest = MIN_PUSH / Margin::STANDARD.push_factor;
+    if (shortest..=MAX_PUSH).contains(&length) {
+        Some(v)
+    } else {
+        clamp_length(v)
+    }
+}
+
 /// Searches a push for each seed (node, T_j). `feasible` prunes pushes the
 /// arm cannot carry out before they are predicted. Returns every scored
 /// push, best first, and the number of predictions made.
@@ -111,7 +127,8 @@ pub fn search_pushes(
             }
             for i in 0..samples {
                 let vector = if round == 0 && i == 0 {
-                    *mean // the policy's own push is always a candidate
+                    // The policy's own push is always a candidate.
+                    own_push(seed.vector).unwrap_or(*mean)
                 } else {
                     let noise = Vector3::new(
                         standard_normal(&mut rng),
@@ -189,4 +206,61 @@ pub fn search_pushes(
     }
     scored.sort_by(|a, b| a.predicted_error.total_cmp(&b.predicted_error));
     Ok((scored, evaluations))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planner::predict::PhysicsPredictor;
+    use crate::sim::sampling::PushDistribution;
+    use crate::sim::{SimConfig, simulate};
+    use crate::tree::{ScaParams, generate};
+
+    /// A push the policy asks for is scored as it is while the forward
+    /// model's domain covers its length; shorter ones are lengthened into
+    /// the trained range, as every sampled push is.
+    #[test]
+    fn the_policys_own_push_is_scored_unchanged_inside_the_domain() {
+        let tree = generate(8, 4, &ScaParams::default()).unwrap();
+        let targets = tree.positions();
+        let options = SearchOptions {
+            max_evaluations: 16,
+            ..SearchOptions::default()
+        };
+        let all = |_: &Push| true;
+        // A direction the simulator accepts at both kept lengths.
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let (node, direction) = std::iter::repeat_with(|| {
+            let p = PushDistribution::default().sample(&tree, &mut rng);
+            (p.node, p.vector.normalize())
+        })
+        .find(|(node, d)| {
+            [0.03, 0.1].iter().all(|l| {
+                let push = Push {
+                    node: *node,
+                    vector: d * *l,
+                };
+                simulate(&tree, &push, &SimConfig::default()).is_ok()
+            })
+        })
+        .unwrap();
+        for (length, kept) in [(0.03, true), (0.1, true), (0.01, false)] {
+            let seed = Push {
+                node,
+                vector: direction * length,
+            };
+            let (scored, _) =
+                search_pushes(&tree, &targets, &[seed], &PhysicsPredictor, &all, &options).unwrap();
+            let has_own = scored.iter().any(|s| s.push.vector == seed.vector);
+            assert_eq!(has_own, kept, "a {length} m push");
+            for s in &scored {
+                let l = s.push.vector.norm();
+                assert!(
+                    s.push.vector == seed.vector
+                        || (MIN_PUSH - 1e-12..=MAX_PUSH + 1e-12).contains(&l),
+                    "a sampled push of {l} m"
+                );
+            }
+        }
+    }
 }

@@ -207,20 +207,37 @@ fn obstacles_are_respected_and_named() {
     let mut q = query(&tree, &targets, Strategy::Physics, false);
     let plan = planner.plan(&q, policy, Some(forward)).unwrap();
     let p = plan.plan.as_ref().expect("the open scene plans");
-    // A post through where the wrist passed halfway along the approach.
+    // A stake (20 cm, 4 cm radius) through where the wrist passed along
+    // the approach, from halfway on: the first such place that leaves the
+    // start free (an obstacle on the start is the wall's case below).
     let arm = CollisionModel::new(Ur5::default().with_base(plan.base.isometry()));
-    let mid = arm
-        .robot
-        .tool_pose(&p.trajectory[p.push_start_index / 2].q)
-        .translation
-        .vector;
-    let post = Obstacle::Capsule {
-        a: Point3::new(mid.x, mid.y, 0.0),
-        b: Point3::new(mid.x, mid.y, mid.z + 0.3),
-        radius: 0.05,
+    let post_at = |k: usize| {
+        let at = arm.robot.tool_pose(&p.trajectory[k].q).translation.vector;
+        Obstacle::Capsule {
+            a: Point3::new(at.x, at.y, at.z - 0.1),
+            b: Point3::new(at.x, at.y, at.z + 0.1),
+            radius: 0.04,
+        }
     };
+    let with =
+        |post: &Obstacle| TreeObstacles::new(&tree).with_obstacles(std::slice::from_ref(post));
+    let (k, post) = (p.push_start_index / 2..p.push_start_index)
+        .map(|k| (k, post_at(k)))
+        .find(|(_, post)| {
+            let hit = arm.check_with_margin(&plan.start, &with(post), &Allowed::default(), 0.02);
+            !matches!(hit, Some(Hit::Obstacle { .. }))
+        })
+        .expect("some place along the approach is away from the start");
+    assert!(
+        matches!(
+            arm.check(&p.trajectory[k].q, &with(&post), &Allowed::default()),
+            Some(Hit::Obstacle { .. })
+        ),
+        "the stake blocks the first plan"
+    );
     q.obstacles = vec![post.clone()];
     let around = planner.plan(&q, policy, Some(forward)).unwrap();
+    assert!(around.plan.is_some(), "plans around the stake");
     check_plan(&around, &q);
     // A wall over the whole workspace makes the start collide, by name.
     let wall = Obstacle::Box {
