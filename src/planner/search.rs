@@ -250,7 +250,7 @@ mod tests {
                 vector: direction * length,
             };
             let (scored, _) =
-                search_pushes(&tree, &targets, &[seed], &PhysicsPredictor, &all, &options).unwrap();
+                search_pushes(&tree, targets, &[seed], &PhysicsPredictor, &all, &options).unwrap();
             let has_own = scored.iter().any(|s| s.push.vector == seed.vector);
             assert_eq!(has_own, kept, "a {length} m push");
             for s in &scored {
