@@ -1,11 +1,13 @@
 //! The trainable burn counterparts of [`GnnWeights`] and
 //! [`PointNetWeights`], built from and written back to the plain weights.
 //!
-//! The layout is dense: node embeddings [B, N, H], edge embeddings
-//! [B, N, N, H] (entry i, j is the edge i → j). As in the exported graph,
-//! the first layer of every edge MLP is split by input, W_g g + W_i n_i +
-//! W_j n_j + W_e e_ij, so the node terms are computed once per node and
-//! broadcast over the N × N edges (1.5–1.7× faster training).
+//! Node embeddings are [B, N, H]; edge embeddings are dense, [B, N, N, H]
+//! (entry i, j is the edge i → j), or, for branch-only models, a list
+//! [E, H] of the pairs that carry messages ([`Edges`]). As in the exported
+//! graph, the first layer of every edge MLP is split by input, W_g g +
+//! W_i n_i + W_j n_j + W_e e_ij, so the node terms are computed once per
+//! node and broadcast (dense) or gathered (list) onto the edges (1.5–1.7×
+//! faster training than concatenating).
 
 use burn::module::{Module, Param};
 use burn::nn::Linear as BurnLinear;
