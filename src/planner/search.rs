@@ -69,19 +69,14 @@ fn clamp_length(v: Vector3<f64>) -> Option<Vector3<f64>> {
     (length.is_finite() && length > 1e-9).then(|| v * (length.clamp(MIN_PUSH, MAX_PUSH) / length))
 }
 
-/// The policy's own push T_j unchanged when the forward model answers for
-/// its length (`nn::domain` reaches a factor [`Margin::push_factor`] below
-/// the shortest trained push), else clamped into the trained range: a
-/// short push the policy asks for is scored as it is, so the search never
-/// does worse than executing the policy's pick.
-fn own_push(v: Vector3<f64>) -> Option<Vector3<f64>> {
-    let length = v.norm();
-    let shortest = MIN_PUSH / Margin::STANDARD.push_factor;
-    if (shortest..=MAX_PUSH).contains(&length) {
-        Some(v)
-    } else {
-        clamp_length(v)
-    }
+/// Whether the policy's own push T_j is scored as it is: while the forward
+/// model answers for its length (`nn::domain` reaches a factor
+/// [`Margin::push_factor`] below the shortest trained push). Outside that,
+/// it is clamped into the trained range like every sampled push. Scoring a
+/// short push the policy asks for as it is means the search never does
+/// worse than executing the policy's pick.
+fn scored_as_is(v: &Vector3<f64>) -> bool {
+    (MIN_PUSH / Margin::STANDARD.push_factor..=MAX_PUSH).contains(&v.norm())
 }
 
 /// Searches a push for each seed (node, T_j). `feasible` prunes pushes the
@@ -127,8 +122,13 @@ pub fn search_pushes(
             }
             for i in 0..samples {
                 let vector = if round == 0 && i == 0 {
-                    // The policy's own push is always a candidate.
-                    own_push(seed.vector).unwrap_or(*mean)
+                    // The policy's own push is always a candidate (`mean`
+                    // is still its clamped form in the first round).
+                    if scored_as_is(&seed.vector) {
+                        seed.vector
+                    } else {
+                        *mean
+                    }
                 } else {
                     let noise = Vector3::new(
                         standard_normal(&mut rng),
