@@ -77,19 +77,18 @@ pub fn device_input(
                 w.config.edge_attributes,
                 w.config.connectivity,
             );
-            let pairs = input.edge_mask.iter().filter(|&&m| m > 0.0).count();
-            let edges = if layout == EdgeLayout::List && pairs > 0 {
-                edge_list(&input, device)
-            } else {
-                Edges::Dense {
-                    attributes: tensor(
-                        std::mem::take(&mut input.edges),
-                        [b, n, n, EDGE_DIM],
-                        device,
-                    ),
-                    mask: tensor(std::mem::take(&mut input.edge_mask), [b, n, n, 1], device),
-                }
+            let list = match layout {
+                EdgeLayout::List => edge_list(&input, device),
+                EdgeLayout::Dense => None,
             };
+            let edges = list.unwrap_or_else(|| Edges::Dense {
+                attributes: tensor(
+                    std::mem::take(&mut input.edges),
+                    [b, n, n, EDGE_DIM],
+                    device,
+                ),
+                mask: tensor(std::mem::take(&mut input.edge_mask), [b, n, n, 1], device),
+            });
             DeviceInput {
                 nodes: tensor(input.nodes, [b, n, task.node_dim()], device),
                 edges: Some(edges),
@@ -108,8 +107,9 @@ pub fn device_input(
 }
 
 /// The message-carrying pairs i → j of every graph, in batch order, with
-/// node indices flattened over the batch (g · N + i).
-fn edge_list(input: &GnnInput, device: &Device) -> Edges {
+/// node indices flattened over the batch (g · N + i); `None` when there
+/// are none.
+fn edge_list(input: &GnnInput, device: &Device) -> Option<Edges> {
     let n = input.n;
     let (mut attributes, mut sender, mut receiver, mut graph) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -126,10 +126,10 @@ fn edge_list(input: &GnnInput, device: &Device) -> Edges {
         graph.push(g as i64);
     }
     let pairs = sender.len();
-    Edges::List {
+    (pairs > 0).then(|| Edges::List {
         attributes: tensor(attributes, [pairs, EDGE_DIM], device),
         sender: indices(sender, device),
         receiver: indices(receiver, device),
         graph: indices(graph, device),
-    }
+    })
 }

@@ -352,6 +352,7 @@ fn run<M: Net>(
         std::fs::rename(&tmp, dir.join(OPTIMIZER_FILE))?;
         write_json(&dir.join(STATE_FILE), state)
     };
+    let layout = EdgeLayout::of(&weights);
     while state.epoch < state.config.epochs {
         let batches = examples.epoch_batches(config.seed, state.epoch, config.batch_size);
         on_event(TrainEvent::EpochStart {
@@ -381,8 +382,7 @@ fn run<M: Net>(
             rate = config
                 .schedule
                 .rate(&state.config, state.learning_rate, progress);
-            let (value, grads) =
-                step::gradients(&model, &weights, &shards, EdgeLayout::of(&weights), &device);
+            let (value, grads) = step::gradients(&model, &weights, &shards, layout, &device);
             model = optimizer.step(rate, model, grads);
             state.batch += 1;
             state.samples += ids.len() as u64;
