@@ -77,6 +77,16 @@ fn paper_model(task: Task, arch: Arch, gs: &[GraphInput]) -> ModelWeights {
     }
 }
 
+/// Targets of the right shapes for a batch of 128 graphs of `n` nodes
+/// (the step's cost does not depend on their values).
+fn made_up_targets(n: usize) -> Targets {
+    Targets {
+        displacement: (0..128 * n * 3).map(|k| (k % 7) as f32 * 0.01).collect(),
+        contact: (0..128).map(|k| 1 + k % (n - 1)).collect(),
+        push: (0..128 * 3).map(|k| (k % 5) as f32 * 0.02).collect(),
+    }
+}
+
 fn training() {
     let peak = gemm_peak();
     println!(
@@ -98,11 +108,7 @@ fn training() {
             let gs = graphs(task, &tree, 128, &mut rng);
             let weights = paper_model(task, arch, &gs);
             let b = batch(&gs).unwrap();
-            let targets = Targets {
-                displacement: (0..128 * n * 3).map(|k| (k % 7) as f32 * 0.01).collect(),
-                contact: (0..128).map(|k| 1 + k % (n - 1)).collect(),
-                push: (0..128 * 3).map(|k| (k % 5) as f32 * 0.02).collect(),
-            };
+            let targets = made_up_targets(n);
             let cores = rayon::current_num_threads();
             let steps = if arch == Arch::Gnn { 4 } else { 20 };
             // The recipe's step (one shard per core), then the whole batch
@@ -148,20 +154,18 @@ fn branches() {
     let tree = generate(n, 5, &ScaParams::default()).unwrap();
     let gs = graphs(Task::Forward, &tree, 128, &mut rng);
     let b = batch(&gs).unwrap();
-    let targets = Targets {
-        displacement: (0..128 * n * 3).map(|k| (k % 7) as f32 * 0.01).collect(),
-        contact: vec![1; 128],
-        push: vec![0.0; 128 * 3],
-    };
+    let targets = made_up_targets(n);
     let cores = rayon::current_num_threads();
     for layers in [5usize, 20] {
-        let mut weights = paper_model(Task::Forward, Arch::Gnn, &gs);
-        if let ModelWeights::Gnn(w) = &weights {
-            let mut config = w.config.clone();
-            config.layers = layers;
-            config.connectivity = Connectivity::Branches;
-            weights = ModelWeights::Gnn(GnnWeights::random(config, w.stats.clone(), 1));
-        }
+        let ModelWeights::Gnn(paper) = paper_model(Task::Forward, Arch::Gnn, &gs) else {
+            unreachable!("a GNN was asked for")
+        };
+        let config = GnnConfig {
+            layers,
+            connectivity: Connectivity::Branches,
+            ..paper.config.clone()
+        };
+        let weights = ModelWeights::Gnn(GnnWeights::random(config, paper.stats.clone(), 1));
         let mut rates = Vec::new();
         for layout in [EdgeLayout::List, EdgeLayout::Dense] {
             let steps = 3;
