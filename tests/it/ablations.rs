@@ -114,6 +114,11 @@ fn the_study_trains_every_variant_under_one_budget_and_checks_the_closest_pair()
         table.contains("Seed check") && !table.contains("pending"),
         "{table}"
     );
+    assert_eq!(
+        table.matches(": holds\n").count() + table.matches(": does not hold\n").count(),
+        3,
+        "the paper's three orderings, each judged: {table}"
+    );
     assert_eq!(to_csv(&done).lines().count(), 12);
     let svg = tmp.join("ablations.svg");
     write_figure(&done, 4, &svg).unwrap();

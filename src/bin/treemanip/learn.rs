@@ -392,7 +392,7 @@ pub struct EvalLearnedArgs {
     /// Directory with the ONNX models (`<task>_gnn.onnx`, `<task>_pointnet.onnx`).
     #[arg(long, default_value = "models")]
     models: PathBuf,
-    /// Dataset directory with `test_N{n}.npz`.
+    /// Dataset directory with `test_N<n>.npz` (`<n>` the tree size).
     #[arg(long)]
     data: PathBuf,
     /// Where the table (CSV, Markdown, JSON) and the figure (SVG) go.

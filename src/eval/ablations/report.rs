@@ -6,7 +6,7 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::{RunResult, StudyStatus, Variant, table_i};
-use crate::nn::gnn::Connectivity;
+use crate::nn::gnn::{Connectivity, EdgeAttributes};
 
 fn result<'a>(status: &'a StudyStatus, key: &str, seed: u64) -> Option<&'a RunResult> {
     status
@@ -63,14 +63,33 @@ pub fn to_markdown(status: &StudyStatus, seed: u64) -> String {
             .collect();
         cpus.sort_unstable();
         cpus.dedup();
+        let (fastest, slowest) = status
+            .results
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+                (lo.min(r.minutes), hi.max(r.minutes))
+            });
         out.push_str(&format!(
-            "\nEvery run: the same recipe, {} epoch(s), {} samples seen; mean e_N over the test sizes (the paper's metric), with the weights that scored best on held-out training trees. Wall time {:.0} min over {} finished runs ({}).\n",
+            "\nEvery run: the same recipe, {} epoch{}, {} samples seen; mean e_N over the test sizes (the paper's metric), with the weights that scored best on held-out training trees. Wall time {:.0} min over {} finished runs, {:.0}–{:.0} min each ({}).\n",
             r.epochs,
-            r.samples,
+            if r.epochs == 1 { "" } else { "s" },
+            thousands(r.samples),
             minutes,
             status.results.len(),
+            fastest,
+            slowest,
             cpus.join(", ")
         ));
+    }
+    let checks = orderings(status, seed);
+    if !checks.is_empty() {
+        out.push_str("\nThe paper's orderings, ours:\n");
+        for (claim, holds) in checks {
+            out.push_str(&format!(
+                "- {claim}: {}\n",
+                if holds { "holds" } else { "does not hold" }
+            ));
+        }
     }
     if !status.remaining.is_empty() {
         out.push_str(&format!(
@@ -101,6 +120,66 @@ pub fn to_markdown(status: &StudyStatus, seed: u64) -> String {
         ));
     }
     out
+}
+
+/// `135000` as `135,000`.
+fn thousands(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// The orderings the paper reads off Table I, checked on our first-seed
+/// means; a claim appears once every row it needs has a result.
+pub fn orderings(status: &StudyStatus, seed: u64) -> Vec<(String, bool)> {
+    let variants = table_i();
+    let mean = |v: &Variant| result(status, &v.key, seed).map(|r| r.mean);
+    let all = EdgeAttributes::default();
+    let Some(full) = variants
+        .iter()
+        .find(|v| v.edge_attributes == all && v.connectivity == Connectivity::Full)
+        .and_then(mean)
+    else {
+        return Vec::new();
+    };
+    let means = |keep: &dyn Fn(&Variant) -> bool| -> Option<Vec<(&Variant, f64)>> {
+        variants
+            .iter()
+            .filter(|v| keep(v))
+            .map(|v| mean(v).map(|m| (v, m)))
+            .collect()
+    };
+    let mut checks = Vec::new();
+    let partial = |v: &Variant| v.in_attribute_study && v.edge_attributes != all;
+    if let Some(others) = means(&partial) {
+        checks.push((
+            "all three attributes [Δp, v, K_s] give the lowest error".to_owned(),
+            others.iter().all(|(_, m)| full < *m),
+        ));
+    }
+    let pairs = |v: &Variant| partial(v) && v.edge_attributes.names(true).len() == 2;
+    if let Some(pairs) = means(&pairs) {
+        let worst = pairs.iter().max_by(|a, b| a.1.total_cmp(&b.1));
+        checks.push((
+            "Δp matters most: without it ([v, K_s]) the error is the highest of the two-attribute rows"
+                .to_owned(),
+            worst.is_some_and(|(v, _)| !v.edge_attributes.delta_p),
+        ));
+    }
+    let branches = |v: &Variant| v.connectivity == Connectivity::Branches;
+    if let Some(branches) = means(&branches) {
+        checks.push((
+            "fully connected beats branches only at every depth".to_owned(),
+            branches.iter().all(|(_, m)| full < *m),
+        ));
+    }
+    checks
 }
 
 /// CSV: key, seed, label, the three means (m), the paper (m), epochs,
@@ -149,7 +228,8 @@ fn short_label(v: &Variant) -> String {
     }
 }
 
-/// Bars of ours and the paper's e_N per variant (first seed).
+/// Bars of ours (first seed) and the paper's e_N per variant, with a tick
+/// where the seed check's second run of a variant landed.
 pub fn write_figure(
     status: &StudyStatus,
     seed: u64,
@@ -219,6 +299,36 @@ pub fn write_figure(
         )?
         .label("ours (equal budget)")
         .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], ours_colour.filled()));
+    // The seed check's second runs: a black tick across our bar.
+    let tick = top * 0.004;
+    let ticks: Vec<_> = variants
+        .iter()
+        .enumerate()
+        .flat_map(|(k, v)| {
+            status
+                .results
+                .iter()
+                .filter(move |r| r.key == v.key && r.seed != seed)
+                .map(move |r| (k, 100.0 * r.mean))
+        })
+        .map(|(k, cm)| {
+            let mut r = Rectangle::new(
+                [
+                    (SegmentValue::Exact(k), cm - tick),
+                    (SegmentValue::Exact(k + 1), cm + tick),
+                ],
+                BLACK.filled(),
+            );
+            r.set_margin(0, 0, 4, 42);
+            r
+        })
+        .collect();
+    if !ticks.is_empty() {
+        chart
+            .draw_series(ticks)?
+            .label("ours, second seed")
+            .legend(|(x, y)| Rectangle::new([(x, y - 1), (x + 10, y + 1)], BLACK.filled()));
+    }
     chart
         .draw_series(
             rows.iter()
@@ -234,4 +344,82 @@ pub fn write_figure(
         .draw()?;
     root.present()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A study whose first-seed means are the given numbers (cm) per key.
+    fn study(means: &[(&str, f64)]) -> StudyStatus {
+        let results = means
+            .iter()
+            .map(|&(key, cm)| RunResult {
+                key: key.to_owned(),
+                seed: 0,
+                label: key.to_owned(),
+                per_size: vec![(15, cm / 100.0)],
+                mean: cm / 100.0,
+                mean_trained: Some(cm / 100.0),
+                mean_zero_shot: None,
+                epochs: 5,
+                samples: 135_000,
+                minutes: 17.0,
+                best_epoch: Some(4),
+                cpus: vec!["test".to_owned()],
+            })
+            .collect();
+        StudyStatus {
+            results,
+            remaining: Vec::new(),
+        }
+    }
+
+    fn papers_numbers() -> Vec<(String, f64)> {
+        table_i().into_iter().map(|v| (v.key, v.paper_cm)).collect()
+    }
+
+    fn checks(means: &[(String, f64)]) -> Vec<bool> {
+        let means: Vec<(&str, f64)> = means.iter().map(|(k, m)| (k.as_str(), *m)).collect();
+        orderings(&study(&means), 0)
+            .into_iter()
+            .map(|c| c.1)
+            .collect()
+    }
+
+    #[test]
+    fn the_papers_own_numbers_satisfy_its_orderings() {
+        assert_eq!(checks(&papers_numbers()), [true, true, true]);
+    }
+
+    #[test]
+    fn each_ordering_fails_when_its_rows_say_otherwise() {
+        let with = |key: &str, cm: f64| {
+            let mut means = papers_numbers();
+            means.iter_mut().find(|m| m.0 == key).unwrap().1 = cm;
+            checks(&means)
+        };
+        // [Δp, K_s] below the full set: the first claim fails.
+        assert_eq!(with("attributes-dp-ks", 2.0), [false, true, true]);
+        // [Δp, v] the worst pair: Δp no longer looks most important.
+        assert_eq!(with("attributes-dp-v", 7.0), [true, false, true]);
+        // A deep branch-only model beats full connectivity.
+        assert_eq!(with("branches-20", 2.2), [true, true, false]);
+    }
+
+    #[test]
+    fn a_claim_waits_for_every_row_it_needs() {
+        let mut means = papers_numbers();
+        means.retain(|m| m.0 != "branches-15");
+        assert_eq!(checks(&means), [true, true]);
+        means.retain(|m| m.0 != "attributes-dp-v-ks");
+        assert!(checks(&means).is_empty());
+    }
+
+    #[test]
+    fn sample_counts_are_grouped_by_thousands() {
+        assert_eq!(thousands(135_000), "135,000");
+        assert_eq!(thousands(1_620_000), "1,620,000");
+        assert_eq!(thousands(999), "999");
+    }
 }
