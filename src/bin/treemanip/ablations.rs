@@ -128,7 +128,7 @@ pub fn eval_ablations(args: EvalAblationsArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     let markdown = format!(
-        "# Ablations (the paper's Table I)\n\nRegenerate: `{}`\n\n{}",
+        "# Ablations (the paper's Table I)\n\nRegenerate: `{}`\n\n{}\n![Table I: ours beside the paper's](ablations.svg)\n",
         regenerate_command(&config.template.command),
         to_markdown(&status, args.seed)
     );
