@@ -114,6 +114,12 @@ fn the_study_trains_every_variant_under_one_budget_and_checks_the_closest_pair()
         table.contains("Seed check") && !table.contains("pending"),
         "{table}"
     );
+    // The budget in the caption: epochs and samples seen, as counted.
+    let samples = indicatif::HumanCount(done.results[0].samples).to_string();
+    assert!(
+        table.contains(&format!("2 epochs, {samples} samples seen")),
+        "{table}"
+    );
     assert_eq!(
         table.matches(": holds\n").count() + table.matches(": does not hold\n").count(),
         3,

@@ -18,7 +18,8 @@ use crate::trees::{NodeSizes, parse_sizes};
 
 #[derive(Args)]
 pub struct EvalAblationsArgs {
-    /// Dataset directory with `train_N<n>.npz` and `test_N<n>.npz` (`<n>` the tree size).
+    /// Dataset directory with `train_N<n>.npz` and `test_N<n>.npz` (`<n>`
+    /// the tree size).
     #[arg(long)]
     data: PathBuf,
     /// Checkpoints of the runs (committed: the chosen weights of finished

@@ -73,7 +73,7 @@ pub fn to_markdown(status: &StudyStatus, seed: u64) -> String {
             "\nEvery run: the same recipe, {} epoch{}, {} samples seen; mean e_N over the test sizes (the paper's metric), with the weights that scored best on held-out training trees. Wall time {:.0} min over {} finished runs, {:.0}–{:.0} min each ({}).\n",
             r.epochs,
             if r.epochs == 1 { "" } else { "s" },
-            thousands(r.samples),
+            indicatif::HumanCount(r.samples),
             minutes,
             status.results.len(),
             fastest,
@@ -122,19 +122,6 @@ pub fn to_markdown(status: &StudyStatus, seed: u64) -> String {
                 "does not hold: the gap between them is within the spread between seeds at this budget"
             }
         ));
-    }
-    out
-}
-
-/// `135000` as `135,000`.
-fn thousands(n: u64) -> String {
-    let digits = n.to_string();
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
-            out.push(',');
-        }
-        out.push(c);
     }
     out
 }
@@ -419,12 +406,5 @@ mod tests {
         assert_eq!(checks(&means), [true, true]);
         means.retain(|m| m.0 != "attributes-dp-v-ks");
         assert!(checks(&means).is_empty());
-    }
-
-    #[test]
-    fn sample_counts_are_grouped_by_thousands() {
-        assert_eq!(thousands(135_000), "135,000");
-        assert_eq!(thousands(1_620_000), "1,620,000");
-        assert_eq!(thousands(999), "999");
     }
 }
