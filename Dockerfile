@@ -1,6 +1,8 @@
 # The HTTP service (`treemanip serve`, the same as `treemanip-server`) on the
 # committed models and native ONNX Runtime; the one `treemanip` binary also
-# runs the CLI's batch work (e.g. the sharded dataset Job).
+# runs the CLI's batch work (e.g. the sharded dataset Job). It is built
+# without the trainer (`--no-default-features`: no burn, no tract), so the
+# image compiles only the server's crates and the burn-free commands.
 #   docker build -t treemanip .            (or: podman build --format docker -t treemanip .)
 #   docker run -p 8080:8080 treemanip
 # scripts/container-test builds and runs this file for real with podman,
@@ -10,15 +12,16 @@
 #    binary need not embed its own copy.
 FROM docker.io/library/rust:1.95-bookworm AS build
 WORKDIR /src
-COPY Cargo.toml Cargo.lock build.rs openapi.yaml ./
+COPY Cargo.toml Cargo.lock openapi.yaml ./
 COPY scripts/fetch-onnxruntime scripts/fetch-onnxruntime
+COPY crates crates
 COPY src src
 COPY benches benches
 COPY assets assets
 ENV TREEMANIP_EMBED_ORT=0 CARGO_PROFILE_RELEASE_STRIP=true
 RUN --mount=type=cache,target=/usr/local/cargo/registry \
     --mount=type=cache,target=/src/target \
-    cargo build --release --locked --bin treemanip \
+    cargo build --release --locked -p treemanip --no-default-features --bin treemanip \
  && mkdir -p /out \
  && cp target/release/treemanip /out/
 

@@ -14,7 +14,7 @@ It also fits one to three capsules per link: triangles are split into
 slices by their centroid along the link's main axis, each slice gets the
 tightest capsule around all corners of its triangles (axis by PCA, centred
 on the minimax radial offset), and the split with the least total capsule
-volume wins. The constants in src/robot/ur5.rs are
+volume wins. The constants in crates/core/src/robot/ur5.rs are
 these, radii rounded up by 1 mm.
 
 Needs numpy and scipy. Usage: python3 scripts/measure-ur5-meshes.py [REF_DIR]

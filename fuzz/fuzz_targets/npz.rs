@@ -1,4 +1,4 @@
-//! See `treemanip::fuzz::npz`.
+//! See `treemanip_server::fuzz::npz`.
 #![no_main]
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| treemanip::fuzz::npz(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| treemanip_server::fuzz::npz(data));

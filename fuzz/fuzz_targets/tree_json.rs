@@ -1,4 +1,4 @@
-//! See `treemanip::fuzz::tree_json`.
+//! See `treemanip_server::fuzz::tree_json`.
 #![no_main]
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| treemanip::fuzz::tree_json(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| treemanip_server::fuzz::tree_json(data));

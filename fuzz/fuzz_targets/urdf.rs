@@ -1,4 +1,4 @@
-//! See `treemanip::fuzz::urdf`.
+//! See `treemanip_server::fuzz::urdf`.
 #![no_main]
 
-libfuzzer_sys::fuzz_target!(|data: &[u8]| treemanip::fuzz::urdf(data));
+libfuzzer_sys::fuzz_target!(|data: &[u8]| treemanip_server::fuzz::urdf(data));

@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 
 use super::input::gnn_input;
 pub use super::input::{Connectivity, EdgeAttributes};
+use crate::graph::contract::ModelOutput;
 use crate::graph::{Batch, EDGE_DIM, FeatureStats, Task};
 
 /// y = W x + b, W stored row-major as out × in.
@@ -234,17 +235,8 @@ impl GnnWeights {
     }
 }
 
-/// What a model returns for a batch (B × N × …, padded nodes included).
-#[derive(Debug, Clone, PartialEq)]
-pub struct GnnOutput {
-    /// B × N × 3: Δp (forward) or T_j (policy), SI units.
-    pub vectors: Vec<f32>,
-    /// Policy: B × N affordances, each graph's real nodes summing to 1.
-    pub affordance: Option<Vec<f32>>,
-}
-
 /// The reference forward pass.
-pub fn forward(weights: &GnnWeights, batch: &Batch) -> GnnOutput {
+pub fn forward(weights: &GnnWeights, batch: &Batch) -> ModelOutput {
     let task = weights.config.task;
     assert_eq!(batch.task, task, "batch and model tasks differ");
     let (b, n, h) = (batch.batch, batch.n, weights.config.hidden);
@@ -333,7 +325,7 @@ pub fn forward(weights: &GnnWeights, batch: &Batch) -> GnnOutput {
         .affordance_head
         .as_ref()
         .map(|_| masked_softmax(&logits, &batch.mask, b, n));
-    GnnOutput {
+    ModelOutput {
         vectors,
         affordance,
     }

@@ -4,7 +4,6 @@
 //! is trained (`train`). Training starts from and ends in the plain
 //! weights, so the two are compared number for number in the tests.
 
-pub mod domain;
 pub mod gnn;
 pub mod input;
 pub mod model;

@@ -3,9 +3,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::gnn::{self, GnnOutput, GnnWeights};
+use super::gnn::{self, GnnWeights};
 use super::onnx;
 use super::pointnet::{self, PointNetWeights};
+use crate::graph::contract::ModelOutput;
 use crate::graph::{Batch, Task};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -31,15 +32,6 @@ impl std::str::FromStr for Arch {
             "gnn" => Ok(Arch::Gnn),
             "pointnet" => Ok(Arch::PointNet),
             other => Err(format!("unknown architecture {other:?} (gnn or pointnet)")),
-        }
-    }
-}
-
-impl Task {
-    pub fn name(self) -> &'static str {
-        match self {
-            Task::Forward => "forward",
-            Task::Policy => "policy",
         }
     }
 }
@@ -73,7 +65,7 @@ impl ModelWeights {
     }
 
     /// The reference forward pass.
-    pub fn forward(&self, batch: &Batch) -> GnnOutput {
+    pub fn forward(&self, batch: &Batch) -> ModelOutput {
         match self {
             ModelWeights::Gnn(w) => gnn::forward(w, batch),
             ModelWeights::PointNet(w) => pointnet::forward(w, batch),

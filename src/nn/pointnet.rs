@@ -19,8 +19,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::gnn::{GnnOutput, Linear, masked_softmax};
+use super::gnn::{Linear, masked_softmax};
 use super::input::normalise;
+use crate::graph::contract::ModelOutput;
 use crate::graph::{Batch, EDGE_DIM, FeatureStats, GraphInput, Task, stats::Running};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -161,7 +162,7 @@ fn dense_relu(layer: &Linear, x: &[f32]) -> Vec<f32> {
 }
 
 /// The reference forward pass, point by point.
-pub fn forward(weights: &PointNetWeights, batch: &Batch) -> GnnOutput {
+pub fn forward(weights: &PointNetWeights, batch: &Batch) -> ModelOutput {
     let (b, n, pd) = (batch.batch, batch.n, weights.config.point_dim());
     let points = point_input(weights, batch);
     let mut vectors = vec![0.0f32; b * n * 3];
@@ -195,7 +196,7 @@ pub fn forward(weights: &PointNetWeights, batch: &Batch) -> GnnOutput {
             }
         }
     }
-    GnnOutput {
+    ModelOutput {
         vectors,
         affordance: weights
             .affordance_head

@@ -3,6 +3,7 @@
 //! server launcher and HTTP client among them, live in [`common`].
 
 mod ablations;
+mod architecture;
 mod batching;
 mod cli_trees;
 mod common;
@@ -27,6 +28,7 @@ mod server_faults;
 mod server_models;
 mod sim_convergence;
 mod sim_physics;
+mod sim_reference;
 mod training;
 mod tree_model;
 mod urdf_python;

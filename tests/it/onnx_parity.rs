@@ -5,10 +5,11 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 use prost::Message;
+use treemanip::graph::contract::ModelOutput;
 use treemanip::graph::stats::StatsBuilder;
 use treemanip::graph::{GraphInput, Task, batch, encode_forward, encode_policy};
 use treemanip::infer::{Backend, OnnxModel, init_backend};
-use treemanip::nn::gnn::{GnnConfig, GnnOutput, GnnWeights, forward};
+use treemanip::nn::gnn::{GnnConfig, GnnWeights, forward};
 use treemanip::nn::onnx::export;
 use treemanip::tree::{ScaParams, Tree, generate};
 
@@ -65,7 +66,7 @@ fn model(task: Task) -> GnnWeights {
     weights
 }
 
-fn assert_close(reference: &GnnOutput, onnx: &GnnOutput, mask: &[f32]) {
+fn assert_close(reference: &ModelOutput, onnx: &ModelOutput, mask: &[f32]) {
     let scale = reference
         .vectors
         .iter()

@@ -113,3 +113,59 @@ fn the_python_example_runs() {
         }
     }
 }
+
+/// Every `cargo run --release -- …` command in the README and docs names a
+/// command of the `treemanip` binary (its `--help` answers), and the
+/// workspace makes `cargo run` pick that binary: the root package is a
+/// default member with `default-run = "treemanip"`, and the server's binary
+/// is in a default member too, so `cargo run --bin treemanip-server` finds
+/// it without `-p`.
+#[test]
+fn the_cargo_run_commands_name_existing_commands() {
+    let manifest = include_str!("../../Cargo.toml");
+    assert!(manifest.contains("default-run = \"treemanip\""));
+    let members = manifest
+        .lines()
+        .find(|l| l.starts_with("default-members"))
+        .expect("default-members");
+    assert!(
+        members.contains("\".\"") && members.contains("\"crates/server\""),
+        "{members}"
+    );
+    let docs = [
+        README,
+        include_str!("../../docs/dataset.md"),
+        include_str!("../../docs/robot.md"),
+    ];
+    let mut checked = 0;
+    for line in docs.iter().flat_map(|d| d.lines()) {
+        let Some((_, rest)) = line.split_once("cargo run --release -- ") else {
+            continue;
+        };
+        // The subcommand path: the words before the first flag or argument.
+        let words: Vec<&str> = rest
+            .split_whitespace()
+            .take_while(|w| !w.starts_with('-') && !w.contains('/') && !w.contains('.'))
+            .take(2)
+            .collect();
+        let mut args = words.clone();
+        args.push("--help");
+        let out = crate::common::treemanip(&args);
+        assert!(
+            out.status.success(),
+            "`treemanip {}` from {line:?}: {}",
+            words.join(" "),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        checked += 1;
+    }
+    assert!(checked >= 15, "{checked} commands");
+    // The server's binary, as `cargo run --release --bin treemanip-server` runs it.
+    assert!(README.contains("cargo run --release --bin treemanip-server"));
+    let server = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/crates/server/Cargo.toml"
+    ))
+    .unwrap();
+    assert!(server.contains("name = \"treemanip-server\""));
+}

@@ -2,7 +2,12 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
-use treemanip::robot::plan::{APPROACH_OFFSET, Outcome, PlanOptions, plan_push, pre_contact_poses};
+use treemanip::robot::plan::{
+    APPROACH_OFFSET, Outcome, PlanOptions, PushPlan, PushSnapshots, execute, pre_contact_poses,
+    reach,
+};
+use treemanip::robot::rrt::{Config, MotionValidator};
+use treemanip::robot::scene::PlanningScene;
 use treemanip::robot::{Ur5, ur5};
 use treemanip::sim::Push;
 use treemanip::tree::{Tree, Wood};
@@ -30,6 +35,29 @@ fn scene_tree() -> Tree {
     Tree::new(positions, parents, branches).unwrap()
 }
 
+/// Algorithm 1's two steps for one candidate, as the planner runs them:
+/// reach a pre-contact pose, then carry out the push.
+fn plan_one(
+    model: &CollisionModel,
+    tree: &Tree,
+    candidate: &Push,
+    start: &Config,
+) -> Result<PushPlan, Outcome> {
+    let obstacles = TreeObstacles::new(tree);
+    let goals = reach(model, tree, &obstacles, candidate, start)?;
+    let snapshots = PushSnapshots::new(tree, candidate, &obstacles);
+    execute(
+        model,
+        tree,
+        &obstacles,
+        &snapshots,
+        candidate,
+        &goals,
+        start,
+        &PlanOptions::default(),
+    )
+}
+
 fn model() -> CollisionModel {
     // Beside the tree, on the side the sideways pushes come from.
     CollisionModel::new(Ur5::default().with_base(Isometry3::translation(0.2, 0.55, 0.1)))
@@ -54,28 +82,12 @@ fn a_candidate_whose_pre_contact_pose_is_inside_the_tree_is_skipped() {
         node: 3,
         vector: Vector3::new(0.0, -0.05, 0.015),
     };
-    let report = plan_push(
-        &model,
-        &tree,
-        &[up, side],
-        &ur5::HOME,
-        &PlanOptions::default(),
-    )
-    .unwrap();
     assert_eq!(
-        report.attempts[0].outcome,
-        Outcome::GoalInCollision,
-        "{:?}",
-        report.attempts
+        plan_one(&model, &tree, &up, &ur5::HOME).map(|p| p.node),
+        Err(Outcome::GoalInCollision)
     );
-    assert_eq!(
-        report.attempts[1].outcome,
-        Outcome::Planned,
-        "{:?}",
-        report.attempts
-    );
-    let plan = report.plan.expect("the second candidate is planned");
-    assert_eq!((plan.node, plan.rank), (3, 2));
+    let plan = plan_one(&model, &tree, &side, &ur5::HOME).expect("the sideways push is planned");
+    assert_eq!(plan.node, 3);
 }
 
 #[test]
@@ -87,15 +99,7 @@ fn the_plan_approaches_then_pushes_along_the_requested_line() {
         node: 3,
         vector: push,
     };
-    let report = plan_push(
-        &model,
-        &tree,
-        &[candidate],
-        &ur5::HOME,
-        &PlanOptions::default(),
-    )
-    .unwrap();
-    let plan = report.plan.expect("planned");
+    let plan = plan_one(&model, &tree, &candidate, &ur5::HOME).expect("planned");
     let trajectory = &plan.trajectory;
     assert_eq!(trajectory[0].q, ur5::HOME);
     assert_eq!(trajectory[0].t, 0.0);
@@ -157,23 +161,13 @@ fn unusable_and_unreachable_candidates_are_reported() {
             vector: Vector3::new(0.0, 0.0, 0.0),
         }, // no push
     ];
-    let report = plan_push(
-        &model,
-        &tree,
-        &candidates,
-        &ur5::HOME,
-        &PlanOptions::default(),
-    )
-    .unwrap();
-    assert!(report.plan.is_none());
-    assert!(
-        report
-            .attempts
-            .iter()
-            .all(|a| a.outcome == Outcome::InvalidCandidate),
-        "{:?}",
-        report.attempts
-    );
+    for candidate in &candidates {
+        assert_eq!(
+            plan_one(&model, &tree, candidate, &ur5::HOME).map(|p| p.node),
+            Err(Outcome::InvalidCandidate),
+            "{candidate:?}"
+        );
+    }
     // A tree far beyond the arm's reach.
     let far = Tree::new(
         tree.positions()
@@ -184,25 +178,29 @@ fn unusable_and_unreachable_candidates_are_reported() {
         tree.branches().to_vec(),
     )
     .unwrap();
-    let report = plan_push(
-        &model,
-        &far,
-        &[Push {
-            node: 3,
-            vector: Vector3::new(0.0, -0.1, 0.0),
-        }],
-        &ur5::HOME,
-        &PlanOptions::default(),
-    )
-    .unwrap();
-    assert_eq!(report.attempts[0].outcome, Outcome::Unreachable);
+    let push = Push {
+        node: 3,
+        vector: Vector3::new(0.0, -0.1, 0.0),
+    };
+    assert_eq!(
+        plan_one(&model, &far, &push, &ur5::HOME).map(|p| p.node),
+        Err(Outcome::Unreachable)
+    );
 }
 
 #[test]
-fn a_start_in_collision_is_an_error() {
+fn a_start_in_collision_is_refused() {
     let tree = scene_tree();
     let model = model();
     let into_ground = [0.0, 1.2, 0.0, 0.0, 0.0, 0.0];
-    let err = plan_push(&model, &tree, &[], &into_ground, &PlanOptions::default()).unwrap_err();
-    assert_eq!(err, treemanip::robot::plan::PlanError::StartInCollision);
+    let obstacles = TreeObstacles::new(&tree);
+    assert!(!PlanningScene::new(&model, &obstacles, Allowed::default()).config_valid(&into_ground));
+    let side = Push {
+        node: 3,
+        vector: Vector3::new(0.0, -0.05, 0.015),
+    };
+    assert_eq!(
+        plan_one(&model, &tree, &side, &into_ground).map(|p| p.node),
+        Err(Outcome::StartInCollision)
+    );
 }

@@ -297,7 +297,7 @@ fn sigterm_lets_an_in_flight_request_finish() {
 #[test]
 fn request_ids_are_echoed_and_logged() {
     use std::io::BufRead;
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_treemanip-server"))
+    let mut child = std::process::Command::new(crate::common::server::server_exe())
         .args([
             "--bind",
             "127.0.0.1:0",

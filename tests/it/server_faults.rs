@@ -62,7 +62,7 @@ fn a_broken_model_file_stops_start_up_naming_it() {
         ("nan-model", nan_weights, "canary"),
     ] {
         let dir = models_with_broken_forward(tag, spoil);
-        let out = Command::new(env!("CARGO_BIN_EXE_treemanip-server"))
+        let out = Command::new(crate::common::server::server_exe())
             .args(["--bind", "127.0.0.1:0", "--models-dir"])
             .arg(&dir)
             .output()

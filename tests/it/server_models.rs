@@ -152,8 +152,17 @@ fn forward_answers_match_the_library_and_batch_many_actions() {
         assert!(names.contains(&name), "{names:?}");
     }
     let first = &models["models"][0]["metadata"];
-    assert_eq!(first["feature_layout_version"], "1");
+    // The typed model card: numbers as numbers, documents as JSON.
+    assert_eq!(first["feature_layout_version"], 1);
+    assert_eq!(first["seed"], 0);
     assert!(first["normalisation"]["inputs"]["edge_mean"].is_array());
+    assert!(first["training_data"]["sizes"].is_array());
+    assert!(
+        first["domain"]["domain"]["push_length"]["max"]
+            .as_f64()
+            .unwrap()
+            > 0.15
+    );
 
     let tree = tree();
     let body = json!({"tree": tree_value(&tree), "contact_node": 9, "push": [0.0, 0.08, 0.0]});

@@ -6,10 +6,11 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 use treemanip::dataset::Split;
+use treemanip::graph::contract::ModelOutput;
 use treemanip::graph::stats::StatsBuilder;
 use treemanip::graph::{Batch, GraphInput, Task, batch, encode_forward, encode_policy};
 use treemanip::infer::{Backend, OnnxModel, init_backend};
-use treemanip::nn::gnn::{Connectivity, EdgeAttributes, GnnConfig, GnnOutput, GnnWeights};
+use treemanip::nn::gnn::{Connectivity, EdgeAttributes, GnnConfig, GnnWeights};
 use treemanip::nn::model::{Arch, ModelWeights};
 use treemanip::nn::pointnet::{PointNetConfig, PointNetWeights, position_stats};
 use treemanip::nn::train::data::Targets;
@@ -76,7 +77,7 @@ fn random_model(task: Task, arch: Arch, config: Option<GnnConfig>) -> ModelWeigh
     w
 }
 
-fn assert_close(a: &GnnOutput, b: &GnnOutput, batch: &Batch, tolerance: f32, what: &str) {
+fn assert_close(a: &ModelOutput, b: &ModelOutput, batch: &Batch, tolerance: f32, what: &str) {
     let scale = a.vectors.iter().fold(1e-3f32, |m, v| m.max(v.abs()));
     for (k, m) in batch.mask.iter().enumerate() {
         if *m == 0.0 {

@@ -39,8 +39,10 @@ fn the_page_and_its_files_are_served_from_the_binary() {
     )
     .unwrap();
     assert!(script.contains("from './vendor/three.module.min.js'"));
+    assert!(script.contains("from './meshes.js'"));
     for (path, media) in [
         ("/viewer/viewer.js", "text/javascript"),
+        ("/viewer/meshes.js", "text/javascript"),
         ("/viewer/viewer.css", "text/css"),
         ("/viewer/vendor/three.module.min.js", "text/javascript"),
         ("/viewer/vendor/OrbitControls.js", "text/javascript"),

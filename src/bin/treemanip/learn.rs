@@ -6,9 +6,11 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 use treemanip::graph::{FEATURE_LAYOUT_VERSION, Task};
-use treemanip::nn::domain;
+use treemanip::model::card::{DomainRecord, ModelCard, TrainingData, TrainingRun};
+use treemanip::model::domain;
 use treemanip::nn::gnn::{Connectivity, EdgeAttributes};
 use treemanip::nn::model::Arch;
+use treemanip::nn::train::data::training_span;
 use treemanip::nn::train::{
     ResumeOptions, Schedule, StopReason, TrainConfig, TrainEvent, read_best, read_state, resume,
     train,
@@ -269,73 +271,49 @@ fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
         treemanip::nn::model::ModelWeights::PointNet(w) => &w.stats,
     };
     let (out_mean, out_std) = weights.output_scale();
-    let metadata: Vec<(String, String)> =
-        vec![
-        ("name".into(), weights.stem()),
-        ("task".into(), weights.task().name().into()),
-        ("arch".into(), weights.arch().name().into()),
-        ("architecture".into(), weights.describe()),
-        (
-            "feature_layout_version".into(),
-            FEATURE_LAYOUT_VERSION.to_string(),
-        ),
-        (
-            "normalisation".into(),
-            serde_json::json!({"inputs": stats, "output_mean": out_mean, "output_std": out_std})
-                .to_string(),
-        ),
-        (
-            "training_data".into(),
-            serde_json::json!({
-                "directory": state.config.data,
-                "dataset_seed": dataset_seed(&state.config.data),
-                "regenerate": dataset_seed(&state.config.data)
-                    .map(|s| format!("treemanip dataset collect --out DIR --seed {s}")),
-                "sizes": state.config.sizes,
-                "limit_per_size": state.config.limit_per_size,
-                "validation": "trees with index ≡ 9 (mod 10) in each size file",
-            })
-            .to_string(),
-        ),
-        ("training_command".into(), command_line(&state.config.command)),
-        (
-            "training_commands".into(),
-            serde_json::to_string(
-                &state.commands.iter().map(|c| command_line(c)).collect::<Vec<_>>(),
-            )?,
-        ),
-        ("training_config".into(), serde_json::to_string(&state.config)?),
-        ("seed".into(), state.config.seed.to_string()),
-        ("git_commit".into(), git_commit()),
-        (
-            "training".into(),
-            serde_json::json!({
-                "epochs": state.epoch,
-                "planned_epochs": state.config.epochs,
-                "recipe": {
-                    "schedule": state.config.schedule,
-                    "learning_rate": state.config.learning_rate,
-                    "min_learning_rate": state.config.min_learning_rate,
-                    "batch_size": state.config.batch_size,
-                    "grad_clip": state.config.grad_clip,
-                    "augment_rotation": state.config.augment_rotation,
-                },
-                "minutes": state.seconds / 60.0,
-                "samples": state.samples,
-                "samples_per_second": state.samples as f64 / state.seconds.max(1e-9),
-                "cpus": state.cpus,
-                "best_epoch": best_epoch,
-            })
-            .to_string(),
-        ),
-        (
-            "validation".into(),
-            serde_json::to_string(&best_record)?,
-        ),
-        ("units".into(), "SI: metres, N·m/rad".into()),
-        domain_entry(&state.config.data, &state.config.sizes)?,
-    ];
-    let bytes = weights.to_onnx(&metadata);
+    let card = ModelCard {
+        name: weights.stem(),
+        task: weights.task(),
+        arch: weights.arch().name().into(),
+        architecture: weights.describe(),
+        feature_layout_version: FEATURE_LAYOUT_VERSION,
+        normalisation: serde_json::json!({"inputs": stats, "output_mean": out_mean, "output_std": out_std}),
+        training_data: TrainingData {
+            directory: state.config.data.display().to_string(),
+            dataset_seed: dataset_seed(&state.config.data),
+            regenerate: dataset_seed(&state.config.data)
+                .map(|s| format!("treemanip dataset collect --out DIR --seed {s}")),
+            sizes: state.config.sizes.clone(),
+            limit_per_size: state.config.limit_per_size,
+            validation: "trees with index ≡ 9 (mod 10) in each size file".into(),
+        },
+        training_command: command_line(&state.config.command),
+        training_commands: state.commands.iter().map(|c| command_line(c)).collect(),
+        training_config: serde_json::to_value(&state.config)?,
+        seed: state.config.seed,
+        git_commit: git_commit(),
+        training: TrainingRun {
+            epochs: state.epoch,
+            planned_epochs: state.config.epochs,
+            recipe: serde_json::json!({
+                "schedule": state.config.schedule,
+                "learning_rate": state.config.learning_rate,
+                "min_learning_rate": state.config.min_learning_rate,
+                "batch_size": state.config.batch_size,
+                "grad_clip": state.config.grad_clip,
+                "augment_rotation": state.config.augment_rotation,
+            }),
+            minutes: state.seconds / 60.0,
+            samples: state.samples,
+            samples_per_second: state.samples as f64 / state.seconds.max(1e-9),
+            cpus: state.cpus.clone(),
+            best_epoch,
+        },
+        validation: serde_json::to_value(&best_record)?,
+        units: "SI: metres, N·m/rad".into(),
+        domain: domain_record(&state.config.data, &state.config.sizes)?,
+    };
+    let bytes = weights.to_onnx(&card.to_metadata());
     let path = out.join(format!("{}.onnx", weights.stem()));
     std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
     Ok(path)
@@ -351,19 +329,14 @@ pub struct DomainArgs {
     data: PathBuf,
 }
 
-/// The `domain` metadata entry of a model trained on `sizes` of `data`.
-fn domain_entry(data: &Path, sizes: &[usize]) -> anyhow::Result<(String, String)> {
-    let span = domain::training_span(data, sizes)?;
-    let domain = span.domain(domain::Margin::STANDARD, domain::EVALUATED_NODES);
-    Ok((
-        "domain".to_owned(),
-        serde_json::json!({
-            "domain": domain,
-            "margin": domain::Margin::STANDARD,
-            "trained_sizes": sizes,
-        })
-        .to_string(),
-    ))
+/// The domain of a model trained on `sizes` of `data`, as its card records it.
+fn domain_record(data: &Path, sizes: &[usize]) -> anyhow::Result<DomainRecord> {
+    let span = training_span(data, sizes)?;
+    Ok(DomainRecord {
+        domain: span.domain(domain::Margin::STANDARD, domain::EVALUATED_NODES),
+        margin: domain::Margin::STANDARD,
+        trained_sizes: sizes.to_vec(),
+    })
 }
 
 pub fn domain_cmd(args: DomainArgs) -> anyhow::Result<()> {
@@ -378,7 +351,10 @@ pub fn domain_cmd(args: DomainArgs) -> anyhow::Result<()> {
             .with_context(|| format!("{}: no training_config in its metadata", path.display()))?;
         let sizes: Vec<usize> = serde_json::from_value(config["sizes"].clone())
             .with_context(|| format!("{}: training_config has no sizes", path.display()))?;
-        let entry = domain_entry(&args.data, &sizes)?;
+        let entry = (
+            "domain".to_owned(),
+            serde_json::to_string(&domain_record(&args.data, &sizes)?)?,
+        );
         let out = treemanip::nn::onnx::with_metadata(&bytes, std::slice::from_ref(&entry))
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         std::fs::write(path, out).with_context(|| format!("writing {}", path.display()))?;

@@ -1,12 +1,16 @@
 //! `treemanip`: the offline tool. Generates trees, (later) simulates pushes,
 //! collects data, trains, exports and evaluates models.
 
+#[cfg(feature = "train")]
 mod ablations;
 mod args;
 mod dataset;
+#[cfg(feature = "train")]
 mod learn;
+#[cfg(feature = "train")]
 mod plan;
 mod progress;
+#[cfg(feature = "train")]
 mod ranks;
 mod sim;
 mod trees;
@@ -36,15 +40,20 @@ enum Command {
     /// Collect and inspect push-episode datasets (.npz).
     #[command(subcommand)]
     Dataset(dataset::DatasetCommand),
+    #[cfg(feature = "train")]
     /// Train a forward model or contact policy (GNN or PointNet) with burn.
     Train(learn::TrainArgs),
+    #[cfg(feature = "train")]
     /// Write trained checkpoints as ONNX models with metadata.
     Export(learn::ExportArgs),
+    #[cfg(feature = "train")]
     /// Record (or refresh) each model's domain in its metadata, computed from
     /// its training split; the weights are left as they are.
     Domain(learn::DomainArgs),
+    #[cfg(feature = "train")]
     /// Plan the UR5's motion for a push (the paper's Algorithm 1).
     Plan(plan::PlanArgs),
+    #[cfg(feature = "train")]
     /// Evaluate components the way the paper does.
     #[command(subcommand)]
     Eval(EvalCommand),
@@ -53,6 +62,7 @@ enum Command {
     Serve(treemanip::api::server::ServeArgs),
 }
 
+#[cfg(feature = "train")]
 #[derive(Subcommand)]
 enum EvalCommand {
     /// Algorithm 1 on test episodes of every size: success rate, planned
@@ -78,17 +88,26 @@ fn main() -> std::process::ExitCode {
         Command::Trees(cmd) => trees::run(cmd),
         Command::Sim(cmd) => sim::run(cmd),
         Command::Dataset(cmd) => dataset::run(cmd),
+        #[cfg(feature = "train")]
         Command::Train(args) => learn::train_cmd(args),
+        #[cfg(feature = "train")]
         Command::Export(args) => learn::export_cmd(args),
+        #[cfg(feature = "train")]
         Command::Domain(args) => learn::domain_cmd(args),
+        #[cfg(feature = "train")]
         Command::Plan(args) => plan::plan(args),
         Command::Serve(args) => treemanip::api::server::run(args),
+        #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
+        #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Ranks(args)) => ranks::eval_ranks(args),
+        #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Forward(args)) => {
             learn::eval_learned(treemanip::graph::Task::Forward, args)
         }
+        #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Ablations(args)) => ablations::eval_ablations(args),
+        #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Policy(args)) => {
             learn::eval_learned(treemanip::graph::Task::Policy, args)
         }

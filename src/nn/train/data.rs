@@ -14,6 +14,7 @@ use crate::graph::stats::{Running, StatsBuilder};
 use crate::graph::{
     Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy, rotate_xy,
 };
+use crate::model::domain::Span;
 use crate::seed::derive_seed;
 
 /// Trees whose index in their size file satisfies this are held out for
@@ -246,4 +247,31 @@ impl Examples {
         }
         out
     }
+}
+
+/// The span of the training trees (index ≢ 9 mod 10, the validation
+/// trees excluded as in training) and pushes of `sizes` in dataset `dir`.
+pub fn training_span(dir: &Path, sizes: &[usize]) -> anyhow::Result<Span> {
+    let mut span = Span::default();
+    for &n in sizes {
+        let path = dir.join(Split::Train.file_name(n));
+        let data = read_size_file(&path, Split::Train)
+            .map_err(|e| anyhow::anyhow!("reading {}: {e}", path.display()))?;
+        for (index, (_, tree)) in data.trees.iter().enumerate() {
+            if !is_validation_tree(index) {
+                span.add_tree(tree);
+            }
+        }
+        for episode in &data.episodes {
+            if !is_validation_tree(episode.tree) {
+                span.add_push(episode.push.vector.norm());
+            }
+        }
+    }
+    anyhow::ensure!(
+        span.push_length.min <= span.push_length.max,
+        "no training episodes in {}",
+        dir.display()
+    );
+    Ok(span)
 }

@@ -436,7 +436,7 @@ fn run<M: Net>(
 
 /// Runs the burn model (no autodiff) on a batch and returns de-normalised
 /// outputs in the same form as the reference pass: for parity tests.
-pub fn burn_forward(weights: &ModelWeights, batch: &Batch) -> super::gnn::GnnOutput {
+pub fn burn_forward(weights: &ModelWeights, batch: &Batch) -> crate::graph::contract::ModelOutput {
     let device = Device::flex();
     let input = device_input(weights, batch, EdgeLayout::of(weights), &device);
     let out = match weights {
@@ -452,7 +452,7 @@ pub fn burn_forward(weights: &ModelWeights, batch: &Batch) -> super::gnn::GnnOut
     let affordance = out
         .logits
         .map(|l| super::gnn::masked_softmax(&values(l), &batch.mask, batch.batch, batch.n));
-    super::gnn::GnnOutput {
+    crate::graph::contract::ModelOutput {
         vectors,
         affordance,
     }

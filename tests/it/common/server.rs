@@ -9,6 +9,23 @@ use std::time::Duration;
 
 use serde_json::Value;
 
+/// The `treemanip-server` binary of this build profile. It belongs to the
+/// workspace's `treemanip-server` package, so cargo gives this package no
+/// `CARGO_BIN_EXE_` for it; it sits beside this package's `treemanip`
+/// binary. The README's test command (`--workspace`) builds it before any
+/// test runs (that package's own integration tests need it); a bench needs
+/// `cargo build --release --bin treemanip-server` first.
+pub fn server_exe() -> std::path::PathBuf {
+    let exe =
+        std::path::Path::new(env!("CARGO_BIN_EXE_treemanip")).with_file_name("treemanip-server");
+    assert!(
+        exe.is_file(),
+        "{} is not built: run the tests with --workspace, or `cargo build --bin treemanip-server` (add --release for the benches)",
+        exe.display()
+    );
+    exe
+}
+
 pub struct Server {
     pub child: Child,
     pub addr: String,
@@ -28,7 +45,7 @@ pub fn client() -> ureq::Agent {
 impl Server {
     /// Starts the server on a free loopback port with extra `args`.
     pub fn start(args: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_treemanip-server"))
+        let mut child = Command::new(server_exe())
             .args(["--bind", "127.0.0.1:0"])
             .args(args)
             .stdout(Stdio::piped())

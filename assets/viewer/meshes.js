@@ -1,0 +1,73 @@
+// treemanip viewer: the shapes it draws (trees as cylinders and spheres)
+// and their colours. The tree frame is z-up, metres.
+
+import * as THREE from './vendor/three.module.min.js';
+
+export const COLOURS = {
+  background: 0xf2f4f7,
+  tree: 0x7a6a58,
+  predicted: 0xe07b20,
+  truth: 0x2e9e4f,
+  target: 0x3b6fd8,
+  arm: 0x8a94a6,
+  gripper: 0x4a5160,
+  selected: 0xd02070,
+};
+export const NODE_RADIUS = 0.012; // m, drawn size of a node
+const MIN_BRANCH_RADIUS = 0.003; // m, so thin twigs stay visible
+
+const UP = new THREE.Vector3(0, 1, 0);
+
+/** A cylinder or capsule mesh from a to b (THREE.Vector3s). */
+export function placeBetween(mesh, a, b) {
+  const d = new THREE.Vector3().subVectors(b, a);
+  const length = d.length();
+  mesh.position.copy(a).addScaledVector(d, 0.5);
+  if (length > 1e-9) mesh.quaternion.setFromUnitVectors(UP, d.multiplyScalar(1 / length));
+  return length;
+}
+
+/** A tree drawn as branch cylinders and node spheres, in one colour. */
+export class TreeMesh {
+  constructor(tree, colour, { opacity = 1, pickable = false } = {}) {
+    this.tree = tree;
+    this.group = new THREE.Group();
+    const material = new THREE.MeshStandardMaterial({
+      color: colour, transparent: opacity < 1, opacity, roughness: 0.8,
+    });
+    this.branches = [];
+    this.nodes = [];
+    const unit = new THREE.CylinderGeometry(1, 1, 1, 12);
+    const ball = new THREE.SphereGeometry(NODE_RADIUS, 14, 10);
+    tree.parents.forEach((parent, i) => {
+      const node = new THREE.Mesh(ball, material.clone());
+      node.userData.node = i;
+      if (pickable) node.userData.pickable = true;
+      this.nodes.push(node);
+      this.group.add(node);
+      if (parent !== null) {
+        const r = Math.max(tree.radius[i] ?? MIN_BRANCH_RADIUS, MIN_BRANCH_RADIUS);
+        const branch = new THREE.Mesh(unit, material);
+        branch.userData = { child: i, parent, r };
+        this.branches.push(branch);
+        this.group.add(branch);
+      }
+    });
+    this.update(tree.positions);
+  }
+
+  /** Moves nodes and branches to `positions` ([[x,y,z]] m). */
+  update(positions) {
+    const p = positions.map((q) => new THREE.Vector3(q[0], q[1], q[2]));
+    this.nodes.forEach((m, i) => m.position.copy(p[i]));
+    for (const b of this.branches) {
+      const length = placeBetween(b, p[b.userData.parent], p[b.userData.child]);
+      b.scale.set(b.userData.r, length, b.userData.r);
+    }
+  }
+
+  colourNode(i, colour) {
+    this.nodes[i].material.color.set(colour);
+  }
+}
+

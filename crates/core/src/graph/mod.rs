@@ -1,0 +1,306 @@
+//! The graph encoding of the paper (Section III-C), written once and used
+//! by training, export, evaluation and the server.
+//!
+//! A tree of N nodes becomes a **fully connected** directed graph: every
+//! ordered pair (i, j), i ≠ j, is an edge i → j (sender i, receiver j) with
+//! attributes
+//!
+//! ```text
+//!     e_ij = [p_j − p_i (3, m), v_ij, K_s,ij (N·m/rad)]
+//! ```
+//!
+//! where v_ij = +1 when i is an ancestor of j (root → leaf), −1 otherwise,
+//! and K_s,ij is the stiffness of the branch joining i and j when they are
+//! parent and child (in either direction), 0 for pairs that are not a
+//! branch. Node and global attributes depend on the task:
+//!
+//! | task | node n_j | global g |
+//! | --- | --- | --- |
+//! | forward model | [c_j] (1 at the contacted node) | [T] (push, m) |
+//! | contact policy | [p′_j − p_j] (target offset, m) | none |
+//!
+//! Features are raw SI values; normalisation (statistics from the training
+//! split, [`FeatureStats`]) is applied inside the model, so clients send SI
+//! units. Graphs of different sizes are batched densely, padded to the
+//! largest N with a node mask; padded nodes and self-edges carry zeros and
+//! are excluded from sums by the mask.
+
+pub mod contract;
+pub mod stats;
+
+use nalgebra::{Point3, Vector3};
+use serde::{Deserialize, Serialize};
+
+pub use stats::FeatureStats;
+
+use crate::tree::Tree;
+
+/// Version of the feature layout below; stored in model metadata so a
+/// model and the encoder that feeds it can be checked against each other.
+pub const FEATURE_LAYOUT_VERSION: u32 = 1;
+
+/// Edge attributes: Δp (3), v, K_s.
+pub const EDGE_DIM: usize = 5;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Task {
+    /// Predict node displacements from a push.
+    Forward,
+    /// Predict per-node pushes and affordances from target offsets.
+    Policy,
+}
+
+impl Task {
+    /// `forward` or `policy`, as in model file names and metadata.
+    pub fn name(self) -> &'static str {
+        match self {
+            Task::Forward => "forward",
+            Task::Policy => "policy",
+        }
+    }
+
+    pub fn node_dim(self) -> usize {
+        match self {
+            Task::Forward => 1,
+            Task::Policy => 3,
+        }
+    }
+
+    pub fn global_dim(self) -> usize {
+        match self {
+            Task::Forward => 3,
+            Task::Policy => 0,
+        }
+    }
+}
+
+/// One encoded graph (f32, row-major).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GraphInput {
+    pub task: Task,
+    pub n: usize,
+    /// N × node_dim.
+    pub nodes: Vec<f32>,
+    /// N × N × EDGE_DIM; entry (i, j) is the edge i → j; (i, i) is zero.
+    pub edges: Vec<f32>,
+    /// global_dim values.
+    pub global: Vec<f32>,
+}
+
+impl GraphInput {
+    pub fn edge(&self, i: usize, j: usize) -> &[f32] {
+        let k = (i * self.n + j) * EDGE_DIM;
+        &self.edges[k..k + EDGE_DIM]
+    }
+
+    pub fn node(&self, j: usize) -> &[f32] {
+        let d = self.task.node_dim();
+        &self.nodes[j * d..(j + 1) * d]
+    }
+
+    /// The same graph for the tree (and push, or target) turned by `angle`
+    /// (rad) about the vertical axis z through the root. Every vector
+    /// feature turns with it (Δp; the push T; the target offsets p′ − p);
+    /// v and K_s are invariant. Gravity is off and joints are isotropic, so
+    /// this is an exact symmetry of the simulator: training augments with it.
+    pub fn rotate_about_vertical(&mut self, angle: f64) {
+        let (sin, cos) = angle.sin_cos();
+        let edges = self.edges.chunks_exact_mut(EDGE_DIM);
+        let nodes = match self.task {
+            Task::Forward => None,
+            Task::Policy => Some(self.nodes.chunks_exact_mut(3)),
+        };
+        let global = match self.task {
+            Task::Forward => Some(self.global.chunks_exact_mut(3)),
+            Task::Policy => None,
+        };
+        for v in edges
+            .chain(nodes.into_iter().flatten())
+            .chain(global.into_iter().flatten())
+        {
+            rotate_xy(v, sin, cos);
+        }
+    }
+}
+
+/// Turns the first two components of `v` (x, y) by the angle with the
+/// given sine and cosine; z stays.
+pub fn rotate_xy(v: &mut [f32], sin: f64, cos: f64) {
+    let (x, y) = (v[0] as f64, v[1] as f64);
+    v[0] = (cos * x - sin * y) as f32;
+    v[1] = (sin * x + cos * y) as f32;
+}
+
+/// K_s of the branch joining i and j (either may be the parent), or 0.
+fn branch_stiffness(tree: &Tree, i: usize, j: usize) -> f64 {
+    let joined = |child: usize, parent: usize| tree.parent(child) == Some(parent);
+    if joined(j, i) {
+        tree.branch(j).map_or(0.0, |b| b.stiffness)
+    } else if joined(i, j) {
+        tree.branch(i).map_or(0.0, |b| b.stiffness)
+    } else {
+        0.0
+    }
+}
+
+/// The edge attributes of a tree at rest: shared by both tasks.
+pub fn edge_attributes(tree: &Tree) -> Vec<f32> {
+    let n = tree.len();
+    let mut edges = vec![0.0f32; n * n * EDGE_DIM];
+    for i in 0..n {
+        for j in 0..n {
+            if i == j {
+                continue;
+            }
+            let d = tree.position(j) - tree.position(i);
+            let k = (i * n + j) * EDGE_DIM;
+            edges[k] = d.x as f32;
+            edges[k + 1] = d.y as f32;
+            edges[k + 2] = d.z as f32;
+            edges[k + 3] = tree.orientation(i, j) as f32;
+            edges[k + 4] = branch_stiffness(tree, i, j) as f32;
+        }
+    }
+    edges
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EncodeError {
+    #[error("contact node {node} is not a non-root node of this {n}-node tree")]
+    ContactNode { node: usize, n: usize },
+    #[error("{got} target positions for a tree of {n} nodes")]
+    TargetCount { got: usize, n: usize },
+    #[error("non-finite {what}")]
+    NonFinite { what: &'static str },
+}
+
+/// Forward model input: the tree, the contacted node and the push T (m).
+pub fn encode_forward(
+    tree: &Tree,
+    contact: usize,
+    push: &Vector3<f64>,
+) -> Result<GraphInput, EncodeError> {
+    let n = tree.len();
+    if contact == 0 || contact >= n {
+        return Err(EncodeError::ContactNode { node: contact, n });
+    }
+    if !push.iter().all(|v| v.is_finite()) {
+        return Err(EncodeError::NonFinite { what: "push" });
+    }
+    let mut nodes = vec![0.0f32; n];
+    nodes[contact] = 1.0;
+    Ok(GraphInput {
+        task: Task::Forward,
+        n,
+        nodes,
+        edges: edge_attributes(tree),
+        global: vec![push.x as f32, push.y as f32, push.z as f32],
+    })
+}
+
+/// Contact policy input: the tree and where its nodes should go (m).
+pub fn encode_policy(tree: &Tree, targets: &[Point3<f64>]) -> Result<GraphInput, EncodeError> {
+    let n = tree.len();
+    if targets.len() != n {
+        return Err(EncodeError::TargetCount {
+            got: targets.len(),
+            n,
+        });
+    }
+    if targets.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
+        return Err(EncodeError::NonFinite {
+            what: "target position",
+        });
+    }
+    let nodes = targets
+        .iter()
+        .zip(tree.positions())
+        .flat_map(|(t, p)| {
+            let d = t - p;
+            [d.x as f32, d.y as f32, d.z as f32]
+        })
+        .collect();
+    Ok(GraphInput {
+        task: Task::Policy,
+        n,
+        nodes,
+        edges: edge_attributes(tree),
+        global: Vec::new(),
+    })
+}
+
+/// Graphs of one task padded to a common size.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Batch {
+    pub task: Task,
+    pub batch: usize,
+    /// Padded node count.
+    pub n: usize,
+    /// B × N × node_dim.
+    pub nodes: Vec<f32>,
+    /// B × N × N × EDGE_DIM.
+    pub edges: Vec<f32>,
+    /// B × global_dim.
+    pub global: Vec<f32>,
+    /// B × N: 1 for real nodes, 0 for padding.
+    pub mask: Vec<f32>,
+}
+
+impl Batch {
+    /// The graphs `range` of this batch, with the same padding.
+    pub fn rows(&self, range: std::ops::Range<usize>) -> Batch {
+        let (nd, gd, n) = (self.task.node_dim(), self.task.global_dim(), self.n);
+        let cut = |v: &[f32], per: usize| v[range.start * per..range.end * per].to_vec();
+        Batch {
+            task: self.task,
+            batch: range.len(),
+            n,
+            nodes: cut(&self.nodes, n * nd),
+            edges: cut(&self.edges, n * n * EDGE_DIM),
+            global: cut(&self.global, gd),
+            mask: cut(&self.mask, n),
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BatchError {
+    #[error("an empty batch")]
+    Empty,
+    #[error("graphs of different tasks in one batch")]
+    MixedTasks,
+}
+
+/// Pads `graphs` to the largest N and stacks them.
+pub fn batch(graphs: &[GraphInput]) -> Result<Batch, BatchError> {
+    let first = graphs.first().ok_or(BatchError::Empty)?;
+    let task = first.task;
+    if graphs.iter().any(|g| g.task != task) {
+        return Err(BatchError::MixedTasks);
+    }
+    let (nd, gd) = (task.node_dim(), task.global_dim());
+    let n = graphs.iter().map(|g| g.n).max().unwrap_or(0);
+    let b = graphs.len();
+    let mut out = Batch {
+        task,
+        batch: b,
+        n,
+        nodes: vec![0.0; b * n * nd],
+        edges: vec![0.0; b * n * n * EDGE_DIM],
+        global: vec![0.0; b * gd],
+        mask: vec![0.0; b * n],
+    };
+    for (k, g) in graphs.iter().enumerate() {
+        let m = g.n;
+        out.nodes[k * n * nd..k * n * nd + m * nd].copy_from_slice(&g.nodes);
+        for i in 0..m {
+            let src = i * m * EDGE_DIM;
+            let dst = ((k * n + i) * n) * EDGE_DIM;
+            out.edges[dst..dst + m * EDGE_DIM].copy_from_slice(&g.edges[src..src + m * EDGE_DIM]);
+        }
+        out.global[k * gd..(k + 1) * gd].copy_from_slice(&g.global);
+        out.mask[k * n..k * n + m].fill(1.0);
+    }
+    Ok(out)
+}

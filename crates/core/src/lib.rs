@@ -1,0 +1,26 @@
+//! treemanip's core, after "Towards Robotic Tree Manipulation: Leveraging
+//! Graph Representations" (Kim, Lee, Kroemer, Kantor): everything that
+//! neither trains a model nor runs one.
+//!
+//! Layers, each using only those listed before it:
+//! - [`tree`]: the tree (nodes, branches, wood), Space Colonization, URDF;
+//! - [`sim`]: the quasi-static push simulator;
+//! - [`graph`]: the graph encoding and the models' I/O contract;
+//!   [`model`]: what a model is trained for (its domain);
+//! - [`dataset`]: push episodes collected with the simulator, `.npz` files;
+//! - [`robot`]: the UR5 and its ⊔ gripper, kinematics, collision, RRT*;
+//! - [`planner`]: the paper's Algorithm 1, with the contact policy and the
+//!   forward model behind small traits ([`planner::ContactPolicy`],
+//!   [`planner::Predictor`]) that `treemanip-infer` implements.
+//!
+//! Units are SI everywhere: metres, radians, N·m/rad for joint stiffness,
+//! N·m·s/rad for joint damping.
+
+pub mod dataset;
+pub mod graph;
+pub mod model;
+pub mod planner;
+pub mod robot;
+pub mod seed;
+pub mod sim;
+pub mod tree;

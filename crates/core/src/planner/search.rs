@@ -1,0 +1,266 @@
+//! Choosing the push vector for each candidate node: a few rounds of the
+//! cross-entropy method around the contact policy's push T_j, every round of
+//! every node predicted in one batch, each push scored by the predicted
+//! largest node distance to the target (the paper's metric).
+
+use nalgebra::{Point3, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use super::predict::PredictError;
+use super::predict::{Predictor, max_node_error};
+use crate::model::domain::Margin;
+use crate::sim::Push;
+use crate::sim::sampling::standard_normal;
+use crate::tree::Tree;
+
+/// The paper's pushes are 5-15 cm; the forward model was trained on them.
+pub const MIN_PUSH: f64 = 0.05;
+pub const MAX_PUSH: f64 = 0.15;
+
+/// Pushes per node and round when the budget is small: the policy's push
+/// (or the mean) and two around it.
+const MIN_SAMPLES: usize = 3;
+
+#[derive(Debug, Clone)]
+pub struct SearchOptions {
+    pub rounds: usize,
+    /// Pushes sampled per node and round, at most (fewer when
+    /// `max_evaluations` spread over the rounds and nodes allows fewer).
+    pub samples: usize,
+    /// The best this many of a node's round set its next mean and spread.
+    pub elite: usize,
+    /// Spread of the first round around T_j (m).
+    pub initial_sigma: f64,
+    /// Predictions allowed in all (rounds stop early when reached).
+    pub max_evaluations: usize,
+    /// A node whose best push so far is predicted this much worse than the
+    /// best of all (m) gets no further rounds: the search would not pick it.
+    pub drop_margin: f64,
+    pub seed: u64,
+}
+
+impl Default for SearchOptions {
+    fn default() -> Self {
+        Self {
+            rounds: 3,
+            samples: 8,
+            elite: 3,
+            initial_sigma: 0.03,
+            max_evaluations: 96,
+            drop_margin: 0.05,
+            seed: 1,
+        }
+    }
+}
+
+/// A push and the error it is predicted to leave.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Scored {
+    pub push: Push,
+    /// Predicted max node distance to the target after the push (m).
+    pub predicted_error: f64,
+}
+
+/// `v` with its length clamped into the trained range.
+fn clamp_length(v: Vector3<f64>) -> Option<Vector3<f64>> {
+    let length = v.norm();
+    (length.is_finite() && length > 1e-9).then(|| v * (length.clamp(MIN_PUSH, MAX_PUSH) / length))
+}
+
+/// Whether the policy's own push T_j is scored as it is: while the forward
+/// model answers for its length (`model::domain` reaches a factor
+/// [`Margin::push_factor`] below the shortest trained push). Outside that,
+/// it is clamped into the trained range like every sampled push. Scoring a
+/// short push the policy asks for as it is means the search never does
+/// worse than executing the policy's pick.
+fn scored_as_is(v: &Vector3<f64>) -> bool {
+    (MIN_PUSH / Margin::STANDARD.push_factor..=MAX_PUSH).contains(&v.norm())
+}
+
+/// Searches a push for each seed (node, T_j). `feasible` prunes pushes the
+/// arm cannot carry out before they are predicted. Returns every scored
+/// push, best first, and the number of predictions made.
+pub fn search_pushes(
+    tree: &Tree,
+    targets: &[Point3<f64>],
+    seeds: &[Push],
+    predictor: &dyn Predictor,
+    feasible: &(dyn Fn(&Push) -> bool + Sync),
+    options: &SearchOptions,
+) -> Result<(Vec<Scored>, usize), PredictError> {
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    // Per seed: mean push and isotropic spread.
+    let mut state: Vec<(Vector3<f64>, f64)> = seeds
+        .iter()
+        .filter_map(|s| clamp_length(s.vector).map(|v| (v, options.initial_sigma)))
+        .collect();
+    let seeds: Vec<&Push> = seeds
+        .iter()
+        .filter(|s| clamp_length(s.vector).is_some())
+        .collect();
+    let mut scored = Vec::new();
+    let mut evaluations = 0;
+    // Per seed: the best error predicted so far, and whether it still
+    // gets rounds.
+    let mut best = vec![f64::INFINITY; seeds.len()];
+    let mut active = vec![true; seeds.len()];
+    for round in 0..options.rounds {
+        let mut round_pushes: Vec<(usize, Push)> = Vec::new();
+        // A small budget is spread over every round and active seed rather
+        // than spent on the first seeds' first round.
+        let active_seeds = active.iter().filter(|a| **a).count().max(1);
+        let rounds_left = options.rounds - round;
+        let budget_left = options.max_evaluations.saturating_sub(evaluations);
+        let samples = budget_left
+            .div_ceil(rounds_left * active_seeds)
+            .clamp(MIN_SAMPLES, options.samples.max(MIN_SAMPLES));
+        for (k, (seed, (mean, sigma))) in seeds.iter().zip(&state).enumerate() {
+            if !active[k] {
+                continue;
+            }
+            for i in 0..samples {
+                let vector = if round == 0 && i == 0 {
+                    // The policy's own push is always a candidate (`mean`
+                    // is still its clamped form in the first round).
+                    if scored_as_is(&seed.vector) {
+                        seed.vector
+                    } else {
+                        *mean
+                    }
+                } else {
+                    let noise = Vector3::new(
+                        standard_normal(&mut rng),
+                        standard_normal(&mut rng),
+                        standard_normal(&mut rng),
+                    );
+                    match clamp_length(mean + noise * *sigma) {
+                        Some(v) => v,
+                        None => continue,
+                    }
+                };
+                round_pushes.push((
+                    k,
+                    Push {
+                        node: seed.node,
+                        vector,
+                    },
+                ));
+            }
+        }
+        let budget = options.max_evaluations.saturating_sub(evaluations);
+        let candidates: Vec<(usize, Push)> = {
+            use rayon::prelude::*;
+            round_pushes
+                .into_par_iter()
+                .filter(|(_, p)| feasible(p))
+                .collect::<Vec<_>>()
+                .into_iter()
+                .take(budget)
+                .collect()
+        };
+        if candidates.is_empty() {
+            break;
+        }
+        let pushes: Vec<Push> = candidates.iter().map(|c| c.1).collect();
+        let predicted = predictor.final_positions(tree, &pushes)?;
+        evaluations += pushes.len();
+        let mut by_seed: Vec<Vec<Scored>> = vec![Vec::new(); seeds.len()];
+        for ((k, push), positions) in candidates.into_iter().zip(predicted) {
+            if let Some(positions) = positions {
+                let s = Scored {
+                    push,
+                    predicted_error: max_node_error(&positions, targets),
+                };
+                by_seed[k].push(s);
+                scored.push(s);
+            }
+        }
+        for (k, mut round_scores) in by_seed.into_iter().enumerate() {
+            if round_scores.is_empty() {
+                continue;
+            }
+            round_scores.sort_by(|a, b| a.predicted_error.total_cmp(&b.predicted_error));
+            best[k] = best[k].min(round_scores[0].predicted_error);
+            let elite = &round_scores[..options.elite.min(round_scores.len())];
+            let mean =
+                elite.iter().map(|s| s.push.vector).sum::<Vector3<f64>>() / elite.len() as f64;
+            let spread = (elite
+                .iter()
+                .map(|s| (s.push.vector - mean).norm_squared())
+                .sum::<f64>()
+                / (3.0 * elite.len() as f64))
+                .sqrt();
+            state[k] = (mean, spread.max(0.005));
+        }
+        let overall = best.iter().copied().fold(f64::INFINITY, f64::min);
+        for (k, b) in best.iter().enumerate() {
+            if *b > overall + options.drop_margin {
+                active[k] = false;
+            }
+        }
+        if evaluations >= options.max_evaluations {
+            break;
+        }
+    }
+    scored.sort_by(|a, b| a.predicted_error.total_cmp(&b.predicted_error));
+    Ok((scored, evaluations))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::planner::predict::PhysicsPredictor;
+    use crate::sim::sampling::PushDistribution;
+    use crate::sim::{SimConfig, simulate};
+    use crate::tree::{ScaParams, generate};
+
+    /// A push the policy asks for is scored as it is while the forward
+    /// model's domain covers its length; shorter ones are lengthened into
+    /// the trained range, as every sampled push is.
+    #[test]
+    fn the_policys_own_push_is_scored_unchanged_inside_the_domain() {
+        let tree = generate(8, 4, &ScaParams::default()).unwrap();
+        let targets = tree.positions();
+        let options = SearchOptions {
+            max_evaluations: 16,
+            ..SearchOptions::default()
+        };
+        let all = |_: &Push| true;
+        // A direction the simulator accepts at both kept lengths.
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let (node, direction) = std::iter::repeat_with(|| {
+            let p = PushDistribution::default().sample(&tree, &mut rng);
+            (p.node, p.vector.normalize())
+        })
+        .find(|(node, d)| {
+            [0.03, 0.1].iter().all(|l| {
+                let push = Push {
+                    node: *node,
+                    vector: d * *l,
+                };
+                simulate(&tree, &push, &SimConfig::default()).is_ok()
+            })
+        })
+        .unwrap();
+        for (length, kept) in [(0.03, true), (0.1, true), (0.01, false)] {
+            let seed = Push {
+                node,
+                vector: direction * length,
+            };
+            let (scored, _) =
+                search_pushes(&tree, targets, &[seed], &PhysicsPredictor, &all, &options).unwrap();
+            let has_own = scored.iter().any(|s| s.push.vector == seed.vector);
+            assert_eq!(has_own, kept, "a {length} m push");
+            for s in &scored {
+                let l = s.push.vector.norm();
+                assert!(
+                    s.push.vector == seed.vector
+                        || (MIN_PUSH - 1e-12..=MAX_PUSH + 1e-12).contains(&l),
+                    "a sampled push of {l} m"
+                );
+            }
+        }
+    }
+}

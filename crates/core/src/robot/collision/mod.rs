@@ -1,0 +1,551 @@
+//! Collision checking of the arm against the tree, the ground and itself,
+//! with parry3d's exact shape queries behind an axis-aligned bounding-box
+//! prefilter (one configuration against a 30-node tree costs about 1 µs;
+//! capsule pairs in closed form).
+//!
+//! Shapes: each arm link's capsule and the gripper's boxes (from the URDF),
+//! each tree branch as a capsule of its radius from parent to child node, and
+//! the ground plane z = 0 (the tree root's height). The arm's base is bolted
+//! to its mount and is not checked against the ground.
+
+use nalgebra::{Isometry3, Point3, Vector3};
+use parry3d_f64::math::{Pose, Rot3, Vec3};
+use parry3d_f64::query::details::closest_points_segment_segment_with_locations_nD;
+use parry3d_f64::query::intersection_test;
+use parry3d_f64::shape::{Capsule, Cuboid, Shape};
+use serde::Serialize;
+
+use super::ur5::{LinkShape, Ur5};
+use crate::tree::Tree;
+
+mod clearance;
+mod segment_box;
+pub use clearance::{LEVER_ARMS, SweepRates};
+
+/// Height of the ground plane (m).
+pub const GROUND_Z: f64 = 0.0;
+
+/// Link pairs not checked for self-collision besides parent/child pairs.
+/// Each is two links apart across a short link and a joint housing, so the
+/// real arm cannot bring them into contact, while our (conservative)
+/// capsules already overlap in the valid zero configuration:
+/// base–upper arm (around the shoulder housing), forearm–wrist 2 and
+/// wrist 1–wrist 3 (around the wrist housings). The gripper sits in front of
+/// the flange face and wrist 2 behind it, but the hemispherical cap of
+/// wrist 2's capsule reaches past the face into the standoff and palm. Sampling showed
+/// these overlaps at the valid zero and home configurations.
+pub const DISABLED_PAIRS: [(&str, &str); 7] = [
+    ("base_link_inertia", "upper_arm_link"),
+    ("forearm_link", "wrist_2_link"),
+    ("wrist_1_link", "wrist_3_link"),
+    ("wrist_2_link", "gripper_mount"),
+    ("wrist_2_link", "gripper_palm"),
+    ("wrist_2_link", "gripper_finger_left"),
+    ("wrist_2_link", "gripper_finger_right"),
+];
+
+/// What a configuration collides with.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Hit {
+    Ground {
+        link: String,
+    },
+    Branch {
+        link: String,
+        node: usize,
+    },
+    SelfCollision {
+        link: String,
+        other: String,
+    },
+    /// One of the fixed obstacles (posts, wires, neighbouring stems), by its
+    /// index in the list given.
+    Obstacle {
+        link: String,
+        index: usize,
+    },
+}
+
+/// A fixed obstacle in the tree's frame (m, rad).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Obstacle {
+    /// A box with its centre, half extents along its axes, and a rotation
+    /// about the vertical axis.
+    Box {
+        centre: Point3<f64>,
+        half_extents: Vector3<f64>,
+        yaw: f64,
+    },
+    /// A capsule between two points.
+    Capsule {
+        a: Point3<f64>,
+        b: Point3<f64>,
+        radius: f64,
+    },
+}
+
+impl Obstacle {
+    fn world_shape(&self) -> (WorldShape, Aabb) {
+        match self {
+            Obstacle::Capsule { a, b, radius } => (
+                WorldShape::Capsule(Capsule::new(vec3(&a.coords), vec3(&b.coords), *radius)),
+                Aabb::of_capsule(&a.coords, &b.coords, *radius),
+            ),
+            Obstacle::Box {
+                centre,
+                half_extents,
+                yaw,
+            } => {
+                let iso = Isometry3::new(centre.coords, Vector3::z() * *yaw);
+                let extent = iso.rotation.to_rotation_matrix().matrix().abs() * half_extents;
+                (
+                    WorldShape::Box(Cuboid::new(vec3(half_extents)), pose(&iso)),
+                    Aabb {
+                        min: centre.coords - extent,
+                        max: centre.coords + extent,
+                    },
+                )
+            }
+        }
+    }
+}
+
+/// An axis-aligned box, for the prefilter.
+#[derive(Debug, Clone, Copy)]
+struct Aabb {
+    min: Vector3<f64>,
+    max: Vector3<f64>,
+}
+
+impl Aabb {
+    fn overlaps(&self, other: &Aabb) -> bool {
+        self.min.x <= other.max.x
+            && other.min.x <= self.max.x
+            && self.min.y <= other.max.y
+            && other.min.y <= self.max.y
+            && self.min.z <= other.max.z
+            && other.min.z <= self.max.z
+    }
+
+    /// The smallest box holding both (`EMPTY` is the identity).
+    fn union(&self, other: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.inf(&other.min),
+            max: self.max.sup(&other.max),
+        }
+    }
+
+    /// Holds nothing and overlaps nothing.
+    const EMPTY: Aabb = Aabb {
+        min: Vector3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY),
+        max: Vector3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
+    };
+
+    fn of_capsule(a: &Vector3<f64>, b: &Vector3<f64>, r: f64) -> Self {
+        let pad = Vector3::repeat(r);
+        Self {
+            min: a.inf(b) - pad,
+            max: a.sup(b) + pad,
+        }
+    }
+}
+
+fn vec3(v: &Vector3<f64>) -> Vec3 {
+    Vec3::new(v.x, v.y, v.z)
+}
+
+fn pose(iso: &Isometry3<f64>) -> Pose {
+    let q = iso.rotation.quaternion();
+    Pose::from_parts(
+        vec3(&iso.translation.vector),
+        Rot3::from_xyzw(q.i, q.j, q.k, q.w),
+    )
+}
+
+/// The arm's shapes in the world at one configuration, with their bounding
+/// boxes (on the stack: computed for every pose checked).
+type WorldShapes = smallvec::SmallVec<[(WorldShape, Aabb); 16]>;
+
+/// A shape in the world, ready for queries.
+#[derive(Debug, Clone)]
+enum WorldShape {
+    /// Endpoints are in world coordinates; the pose is the identity.
+    Capsule(Capsule),
+    Box(Cuboid, Pose),
+}
+
+impl WorldShape {
+    fn as_query(&self) -> (Pose, &dyn Shape) {
+        match self {
+            WorldShape::Capsule(c) => (Pose::IDENTITY, c),
+            WorldShape::Box(b, p) => (*p, b),
+        }
+    }
+}
+
+/// The tree's branches as capsules, and any fixed obstacles around it.
+#[derive(Debug, Clone)]
+pub struct TreeObstacles {
+    /// (node the branch ends at, capsule, bounding box)
+    branches: Vec<(usize, Capsule, Aabb)>,
+    /// Fixed obstacles, never touched by anything.
+    fixed: std::sync::Arc<[(WorldShape, Aabb)]>,
+    /// One box around all of them: an arm shape far from it skips the lot.
+    bounds: Aabb,
+}
+
+type Branches = Vec<(usize, Capsule, Aabb)>;
+
+impl TreeObstacles {
+    fn from_parts(branches: Branches, fixed: std::sync::Arc<[(WorldShape, Aabb)]>) -> Self {
+        let bounds = branches
+            .iter()
+            .map(|b| &b.2)
+            .chain(fixed.iter().map(|f| &f.1))
+            .fold(Aabb::EMPTY, |all, b| all.union(b));
+        Self {
+            branches,
+            fixed,
+            bounds,
+        }
+    }
+
+    /// The tree at rest.
+    pub fn new(tree: &Tree) -> Self {
+        Self::deformed(tree, tree.positions())
+    }
+
+    fn branches_at(tree: &Tree, positions: &[Point3<f64>]) -> Branches {
+        tree.branches_iter()
+            .map(|(j, b)| {
+                let parent = tree.parent(j).expect("non-root");
+                let (a, c) = (positions[parent].coords, positions[j].coords);
+                (
+                    j,
+                    Capsule::new(vec3(&a), vec3(&c), b.radius),
+                    Aabb::of_capsule(&a, &c, b.radius),
+                )
+            })
+            .collect()
+    }
+
+    /// The tree with its nodes at `positions` (same topology and radii).
+    pub fn deformed(tree: &Tree, positions: &[Point3<f64>]) -> Self {
+        Self::from_parts(Self::branches_at(tree, positions), Vec::new().into())
+    }
+
+    /// These obstacles with `obstacles` added as fixed ones.
+    pub fn with_obstacles(self, obstacles: &[Obstacle]) -> Self {
+        let mut fixed = self.fixed.to_vec();
+        fixed.extend(obstacles.iter().map(Obstacle::world_shape));
+        Self::from_parts(self.branches, fixed.into())
+    }
+
+    /// The same fixed obstacles around the tree with its nodes at
+    /// `positions` (a snapshot during a push).
+    pub fn with_tree_at(&self, tree: &Tree, positions: &[Point3<f64>]) -> Self {
+        Self::from_parts(Self::branches_at(tree, positions), self.fixed.clone())
+    }
+
+    /// Nothing to hit (an empty workcell but for the ground).
+    pub fn empty() -> Self {
+        Self::from_parts(Vec::new(), Vec::new().into())
+    }
+
+    /// Arbitrary capsules (node label, endpoints, radius), e.g. a wall of
+    /// obstacles in a test scene.
+    pub fn from_capsules(capsules: &[(usize, Point3<f64>, Point3<f64>, f64)]) -> Self {
+        let branches = capsules
+            .iter()
+            .map(|(node, a, b, r)| {
+                (
+                    *node,
+                    Capsule::new(vec3(&a.coords), vec3(&b.coords), *r),
+                    Aabb::of_capsule(&a.coords, &b.coords, *r),
+                )
+            })
+            .collect();
+        Self::from_parts(branches, Vec::new().into())
+    }
+}
+
+/// Which contacts are allowed in a query.
+#[derive(Debug, Clone, Default)]
+pub struct Allowed {
+    /// Branches (by the node they end at) the gripper — palm, fingers and the
+    /// flange link they are bolted to — may touch: the contacted branch
+    /// during a push.
+    pub gripper_branches: Vec<usize>,
+}
+
+#[derive(Debug, Clone)]
+struct ShapeSlot {
+    link: usize,
+    shape: LinkShape,
+    gripper: bool,
+    base: bool,
+    /// Which joints move this shape.
+    moved_by: [bool; 6],
+}
+
+/// The arm's collision geometry and which link pairs to test for
+/// self-collision.
+#[derive(Debug, Clone)]
+pub struct CollisionModel {
+    pub robot: Ur5,
+    shapes: Vec<ShapeSlot>,
+    /// Pairs of indices into `shapes`.
+    self_pairs: Vec<(usize, usize)>,
+    names: Vec<String>,
+}
+
+impl CollisionModel {
+    /// The arm with the default [`DISABLED_PAIRS`].
+    pub fn new(robot: Ur5) -> Self {
+        Self::with_disabled_pairs(robot, &DISABLED_PAIRS)
+    }
+
+    /// The arm, skipping self-collision checks between the named link pairs
+    /// (besides parent/child pairs, which are never checked).
+    pub fn with_disabled_pairs(robot: Ur5, disabled_pairs: &[(&str, &str)]) -> Self {
+        let names: Vec<String> = robot.link_names().map(str::to_owned).collect();
+        let mut shapes = Vec::new();
+        for (link, (name, link_shapes)) in robot.link_shapes().enumerate() {
+            for shape in link_shapes {
+                shapes.push(ShapeSlot {
+                    link,
+                    shape: shape.clone(),
+                    // The flange carries the gripper; its capsule bulges
+                    // past the palm face, so it shares the gripper's allowance.
+                    gripper: name.starts_with("gripper_") || name == "wrist_3_link",
+                    base: name == "base_link_inertia",
+                    moved_by: std::array::from_fn(|i| robot.moved_by(link, i)),
+                });
+            }
+        }
+        let adjacent =
+            |a: usize, b: usize| robot.link_parent(a) == Some(b) || robot.link_parent(b) == Some(a);
+        let disabled = |a: &str, b: &str| {
+            disabled_pairs
+                .iter()
+                .any(|(x, y)| (*x == a && *y == b) || (*x == b && *y == a))
+        };
+        let mut self_pairs = Vec::new();
+        for i in 0..shapes.len() {
+            for j in (i + 1)..shapes.len() {
+                let (la, lb) = (shapes[i].link, shapes[j].link);
+                if la == lb || adjacent(la, lb) || disabled(&names[la], &names[lb]) {
+                    continue;
+                }
+                // The gripper and the flange are one rigid body.
+                if shapes[i].gripper && shapes[j].gripper {
+                    continue;
+                }
+                self_pairs.push((i, j));
+            }
+        }
+        Self {
+            robot,
+            shapes,
+            self_pairs,
+            names,
+        }
+    }
+
+    /// World-frame capsules (endpoints, radius) of every capsule-shaped link
+    /// part at `q`, with the link name: for tests and drawings.
+    pub fn capsules_at(&self, q: &[f64; 6]) -> Vec<(&str, Point3<f64>, Point3<f64>, f64)> {
+        let poses = self.robot.link_poses(q);
+        self.shapes
+            .iter()
+            .filter_map(|slot| match &slot.shape {
+                LinkShape::Capsule { a, b, radius } => Some((
+                    self.names[slot.link].as_str(),
+                    poses[slot.link] * Point3::from(*a),
+                    poses[slot.link] * Point3::from(*b),
+                    *radius,
+                )),
+                LinkShape::Box { .. } => None,
+            })
+            .collect()
+    }
+
+    /// R_i(q) for each joint i: the largest distance from joint i's axis
+    /// of any point of a shape it moves, each shape grown by `margin`. A
+    /// rotation Δq_i moves no such point farther than R_i |Δq_i|; the
+    /// planning scene spaces its edge checks by it.
+    pub fn axis_reach(&self, q: &[f64; 6], margin: f64) -> [f64; 6] {
+        let poses = self.robot.link_poses(q);
+        let axes = self.robot.joint_axes(&poses);
+        let from_axis = |i: usize, p: &Point3<f64>| {
+            let (o, d) = &axes[i];
+            let v = p - o;
+            (v - d * v.dot(d)).norm()
+        };
+        let mut reach = [0.0f64; 6];
+        for slot in &self.shapes {
+            let (points, pad) = clearance::bounding_points(slot, &poses[slot.link], margin);
+            for i in (0..6).filter(|&i| slot.moved_by[i]) {
+                for p in &points {
+                    reach[i] = reach[i].max(from_axis(i, p) + pad);
+                }
+            }
+        }
+        reach
+    }
+
+    /// Link names of the self-collision pairs that are checked.
+    pub fn self_collision_pairs(&self) -> Vec<(&str, &str)> {
+        self.self_pairs
+            .iter()
+            .map(|&(i, j)| {
+                (
+                    self.names[self.shapes[i].link].as_str(),
+                    self.names[self.shapes[j].link].as_str(),
+                )
+            })
+            .collect()
+    }
+
+    fn world_shapes(&self, q: &[f64; 6], margin: f64) -> WorldShapes {
+        let poses = self.robot.link_poses(q);
+        self.shapes
+            .iter()
+            .map(|slot| {
+                let p = poses[slot.link];
+                match &slot.shape {
+                    LinkShape::Capsule { a, b, radius } => {
+                        let (wa, wb) =
+                            ((p * Point3::from(*a)).coords, (p * Point3::from(*b)).coords);
+                        let r = radius + margin;
+                        (
+                            WorldShape::Capsule(Capsule::new(vec3(&wa), vec3(&wb), r)),
+                            Aabb::of_capsule(&wa, &wb, r),
+                        )
+                    }
+                    LinkShape::Box {
+                        centre,
+                        half_extents,
+                    } => {
+                        let half_extents = &half_extents.add_scalar(margin);
+                        let world = p * centre;
+                        let rot = world.rotation.to_rotation_matrix();
+                        let extent = rot.matrix().abs() * half_extents;
+                        let c = world.translation.vector;
+                        (
+                            WorldShape::Box(Cuboid::new(vec3(half_extents)), pose(&world)),
+                            Aabb {
+                                min: c - extent,
+                                max: c + extent,
+                            },
+                        )
+                    }
+                }
+            })
+            .collect()
+    }
+
+    /// The first collision of configuration `q`, or `None` when it is free.
+    pub fn check(&self, q: &[f64; 6], tree: &TreeObstacles, allowed: &Allowed) -> Option<Hit> {
+        self.check_with_margin(q, tree, allowed, 0.0)
+    }
+
+    /// As [`Self::check`], with every robot shape grown by `margin` (m): a
+    /// configuration free with margin δ/2 stays free while no robot point
+    /// moves more than δ/2, which makes discrete edge checks conservative.
+    pub fn check_with_margin(
+        &self,
+        q: &[f64; 6],
+        tree: &TreeObstacles,
+        allowed: &Allowed,
+        margin: f64,
+    ) -> Option<Hit> {
+        let world = self.world_shapes(q, margin);
+        let name = |i: usize| self.names[self.shapes[i].link].clone();
+        for (i, (_, aabb)) in world.iter().enumerate() {
+            if !self.shapes[i].base && aabb.min.z < GROUND_Z {
+                // AABB min z is exact for capsules and boxes.
+                return Some(Hit::Ground { link: name(i) });
+            }
+        }
+        for (i, (shape, aabb)) in world.iter().enumerate() {
+            if !aabb.overlaps(&tree.bounds) {
+                continue;
+            }
+            for (node, capsule, branch_box) in &tree.branches {
+                if !aabb.overlaps(branch_box) {
+                    continue;
+                }
+                if self.shapes[i].gripper && allowed.gripper_branches.contains(node) {
+                    continue;
+                }
+                if intersects(shape, &WorldShape::Capsule(*capsule)) {
+                    return Some(Hit::Branch {
+                        link: name(i),
+                        node: *node,
+                    });
+                }
+            }
+        }
+        for (i, (shape, aabb)) in world.iter().enumerate() {
+            for (index, (obstacle, obstacle_box)) in tree.fixed.iter().enumerate() {
+                if !aabb.overlaps(obstacle_box) {
+                    continue;
+                }
+                if intersects(shape, obstacle) {
+                    return Some(Hit::Obstacle {
+                        link: name(i),
+                        index,
+                    });
+                }
+            }
+        }
+        for &(i, j) in &self.self_pairs {
+            if !world[i].1.overlaps(&world[j].1) {
+                continue;
+            }
+            if intersects(&world[i].0, &world[j].0) {
+                return Some(Hit::SelfCollision {
+                    link: name(i),
+                    other: name(j),
+                });
+            }
+        }
+        None
+    }
+}
+
+/// Whether two shapes touch: closed forms for capsule pairs and capsule–box
+/// pairs ([`segment_box`]), parry's default dispatcher for two boxes.
+fn intersects(a: &WorldShape, b: &WorldShape) -> bool {
+    match (a, b) {
+        (WorldShape::Capsule(c1), WorldShape::Capsule(c2)) => {
+            capsules_intersect(&Pose::IDENTITY, c1, &Pose::IDENTITY, c2)
+        }
+        (WorldShape::Capsule(c), WorldShape::Box(cuboid, pose))
+        | (WorldShape::Box(cuboid, pose), WorldShape::Capsule(c)) => {
+            segment_box::segment_box_distance_squared(c.segment.a, c.segment.b, cuboid, pose)
+                <= c.radius * c.radius
+        }
+        _ => {
+            let ((pa, sa), (pb, sb)) = (a.as_query(), b.as_query());
+            intersection_test(&pa, sa, &pb, sb).map_or(true, |r| r.intersecting)
+        }
+    }
+}
+
+/// Two capsules touch when their segments are within the sum of the radii:
+/// parry's closed-form segment-segment closest points, where its general
+/// dispatcher would run GJK on the two support maps (most of a
+/// configuration's checks are capsule pairs: arm links, branches, self).
+fn capsules_intersect(pa: &Pose, c1: &Capsule, pb: &Pose, c2: &Capsule) -> bool {
+    let (s1, s2) = (c1.segment.transformed(pa), c2.segment.transformed(pb));
+    let (l1, l2) = closest_points_segment_segment_with_locations_nD((&s1.a, &s1.b), (&s2.a, &s2.b));
+    let gap = s1.point_at(&l1) - s2.point_at(&l2);
+    let reach = c1.radius + c2.radius;
+    gap.length_squared() <= reach * reach
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,397 @@
+//! The models a process serves: loaded once from a directory, each with a
+//! small pool of sessions so concurrent requests do not queue on one lock,
+//! and the two questions the service answers with them (what happens under
+//! these pushes; which node to push, and how).
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Point3, Vector3};
+
+use super::batcher::{BatchLimits, Batcher, JobControl};
+use super::{Backend, InferError, LoadProblem, OnnxModel, init_backend, read_metadata};
+use treemanip_core::graph::contract::ModelOutput;
+use treemanip_core::graph::{FEATURE_LAYOUT_VERSION, Task, batch, encode_forward, encode_policy};
+use treemanip_core::model::card::ModelCard;
+use treemanip_core::model::domain::Domain;
+use treemanip_core::planner::Candidate;
+use treemanip_core::tree::Tree;
+
+/// Graphs per inference call; larger requests are split.
+pub const MAX_BATCH: usize = 64;
+
+/// How a model's inference is spread over the cores: `count` sessions,
+/// each with its batching worker, each running one batch on `threads`
+/// threads (ONNX Runtime's intra-op pool; tract runs one thread per
+/// session, so there the layout becomes `count × threads` sessions).
+///
+/// One session on every core is the server's default, for latency:
+/// measured on 2 cores (AMD EPYC), the planner's batches of the forward GNN
+/// ran 1.6-2× faster per push than on two single-threaded sessions (N = 20,
+/// 8 pushes: 2.1 vs 4.1 ms a push), the contact policy's single graph at
+/// N = 30 in 8.2 instead of 11.2 ms, and one `/v1/forward` call at N = 30
+/// in 11.6 instead of 14.9 ms (p50). Under many concurrent small calls two
+/// single-threaded sessions keep more throughput (N = 15, 64 clients: 479
+/// against 424 requests/s; N = 30 equal), hence `--session-threads 1`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SessionLayout {
+    pub count: usize,
+    pub threads: usize,
+}
+
+impl SessionLayout {
+    /// One session using `cores` threads.
+    pub fn shared(cores: usize) -> Self {
+        Self {
+            count: 1,
+            threads: cores.max(1),
+        }
+    }
+}
+
+/// `n` single-threaded sessions.
+impl From<usize> for SessionLayout {
+    fn from(count: usize) -> Self {
+        Self { count, threads: 1 }
+    }
+}
+
+/// One model file and its sessions, behind a dynamic batcher.
+pub struct ServedModel {
+    /// File stem: `forward_gnn`, `policy_pointnet`, ...
+    pub name: String,
+    pub task: Task,
+    pub file: PathBuf,
+    pub metadata: Vec<(String, String)>,
+    /// What the model is and what it answers for, from its metadata.
+    pub card: ModelCard,
+    /// Trees and pushes the model answers for (`card.domain.domain`).
+    pub domain: Domain,
+    /// Sessions, each with its batching worker.
+    pub sessions: usize,
+    batcher: Batcher,
+}
+
+impl ServedModel {
+    pub fn load(path: &Path, sessions: impl Into<SessionLayout>) -> Result<Self, InferError> {
+        Self::load_with(path, sessions, BatchLimits::default())
+    }
+
+    /// Loads a model with a session layout (a batching worker per session)
+    /// batching requests within `limits`.
+    pub fn load_with(
+        path: &Path,
+        sessions: impl Into<SessionLayout>,
+        limits: BatchLimits,
+    ) -> Result<Self, InferError> {
+        let mut spread: SessionLayout = sessions.into();
+        if !matches!(init_backend(None)?, Backend::OnnxRuntime { .. }) {
+            spread = (spread.count.max(1) * spread.threads.max(1)).into();
+        }
+        let bytes = std::fs::read(path).map_err(|e| InferError::Read {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        let problem = |problem: LoadProblem| InferError::Load {
+            path: path.to_path_buf(),
+            problem,
+        };
+        let metadata = read_metadata(&bytes).map_err(|e| problem(LoadProblem::NotOnnx(e)))?;
+        let layout = metadata
+            .iter()
+            .find(|(k, _)| k == "feature_layout_version")
+            .map(|(_, v)| v.as_str());
+        if layout != Some(FEATURE_LAYOUT_VERSION.to_string().as_str()) {
+            return Err(problem(LoadProblem::FeatureLayout {
+                found: layout.map(str::to_owned),
+                expected: FEATURE_LAYOUT_VERSION,
+            }));
+        }
+        let mut sessions = (0..spread.count.max(1))
+            .map(|_| {
+                OnnxModel::with_threads(&bytes, metadata.clone(), Some(spread.threads.max(1)))
+                    .map_err(|e| match e {
+                        InferError::Session(why) => problem(LoadProblem::Session(why)),
+                        other => other,
+                    })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let task = sessions[0].task();
+        for session in &mut sessions {
+            canary(session, task).map_err(|e| problem(LoadProblem::Canary(e.to_string())))?;
+        }
+        let card = ModelCard::from_metadata(&metadata).map_err(|e| problem(e.into()))?;
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        Ok(Self {
+            domain: card.domain.domain,
+            card,
+            sessions: sessions.len(),
+            batcher: Batcher::start(&name, sessions, limits),
+            name,
+            task,
+            file: path.to_path_buf(),
+            metadata,
+        })
+    }
+
+    pub fn meta(&self, key: &str) -> Option<&str> {
+        self.metadata
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// Runs a batch through the model's queue (batched with other callers'
+    /// jobs of the same size) and waits for its rows.
+    pub fn run(&self, b: &treemanip_core::graph::Batch) -> Result<ModelOutput, InferError> {
+        self.batcher.run(b.clone(), JobControl::default())
+    }
+
+    /// The model's queue, for callers that submit several jobs at once or
+    /// attach a deadline.
+    pub fn batcher(&self) -> &Batcher {
+        &self.batcher
+    }
+}
+
+/// Every session must answer a tiny inference (a three-node tree) with
+/// finite outputs of the contract's shapes before it serves: a file that
+/// loads but computes garbage (NaN weights, a wrong graph) is refused at
+/// start-up instead of answering nonsense.
+fn canary(session: &mut OnnxModel, task: Task) -> Result<(), InferError> {
+    use treemanip_core::tree::Wood;
+    let positions = vec![
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(0.0, 0.0, 0.3),
+        Point3::new(0.1, 0.0, 0.5),
+    ];
+    let parents = vec![None, Some(0), Some(1)];
+    let wood = Wood::default();
+    let length = |a: usize, b: usize| (positions[b] - positions[a]).norm();
+    let branches = vec![
+        None,
+        Some(wood.branch(0.01, length(0, 1))),
+        Some(wood.branch(0.005, length(1, 2))),
+    ];
+    let tree = Tree::new(positions, parents, branches).expect("the canary tree is valid");
+    let graph = match task {
+        Task::Forward => encode_forward(&tree, 2, &Vector3::new(0.0, 0.05, 0.0)),
+        Task::Policy => {
+            let targets: Vec<_> = tree
+                .positions()
+                .iter()
+                .map(|p| p + Vector3::new(0.0, 0.03, 0.0))
+                .collect();
+            encode_policy(&tree, &targets)
+        }
+    }?;
+    let b = batch(&[graph])?;
+    let out = session.run(&b)?;
+    let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+    if out.vectors.len() != 9 || !finite(&out.vectors) {
+        return Err(InferError::Run(format!(
+            "expected 3 finite vectors, got {:?}",
+            out.vectors
+        )));
+    }
+    if task == Task::Policy
+        && !out
+            .affordance
+            .as_deref()
+            .is_some_and(|a| a.len() == 3 && finite(a))
+    {
+        return Err(InferError::Run(format!(
+            "expected 3 finite affordances, got {:?}",
+            out.affordance
+        )));
+    }
+    Ok(())
+}
+
+/// Every model found in a directory.
+pub struct ModelSet {
+    pub backend: Backend,
+    pub dir: PathBuf,
+    pub models: Vec<ServedModel>,
+    /// Files that failed to load (name, why), when broken files are
+    /// skipped rather than fatal; they show as not ready.
+    pub broken: Vec<(String, String)>,
+}
+
+impl ModelSet {
+    /// Loads every `*.onnx` in `dir` (sorted by name). A file that cannot be
+    /// loaded (missing, truncated, another feature layout) is an error that
+    /// names it, or, with `skip_broken`, is listed in [`ModelSet::broken`].
+    pub fn load_dir(
+        dir: &Path,
+        library: Option<&Path>,
+        sessions: impl Into<SessionLayout>,
+        skip_broken: bool,
+    ) -> Result<Self, InferError> {
+        Self::load_dir_with(dir, library, sessions, skip_broken, BatchLimits::default())
+    }
+
+    /// [`Self::load_dir`] with the batching limits of every model.
+    pub fn load_dir_with(
+        dir: &Path,
+        library: Option<&Path>,
+        sessions: impl Into<SessionLayout>,
+        skip_broken: bool,
+        limits: BatchLimits,
+    ) -> Result<Self, InferError> {
+        let backend = init_backend(library)?;
+        let sessions = sessions.into();
+        let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+            .map_err(|e| InferError::Read {
+                path: dir.to_path_buf(),
+                reason: e.to_string(),
+            })?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "onnx"))
+            .collect();
+        files.sort();
+        let mut models = Vec::new();
+        let mut broken = Vec::new();
+        for path in &files {
+            match ServedModel::load_with(path, sessions, limits) {
+                Ok(model) => models.push(model),
+                Err(e) if skip_broken => {
+                    let name = path
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    broken.push((name, e.to_string()));
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(Self {
+            backend,
+            dir: dir.to_path_buf(),
+            models,
+            broken,
+        })
+    }
+
+    pub fn get(&self, name: &str) -> Option<&ServedModel> {
+        self.models.iter().find(|m| m.name == name)
+    }
+
+    /// The model that answers a task by default: the GNN.
+    pub fn default_for(&self, task: Task) -> Option<&ServedModel> {
+        self.get(&format!("{}_gnn", task.name()))
+    }
+}
+
+/// Predicted displacements Δp (m) per node, for each (contact node, push).
+/// Chunks of at most [`MAX_BATCH`] actions (fewer for large trees, see
+/// [`super::batcher::MAX_PAIRS`]) are queued together, so the model's
+/// sessions run them in parallel.
+pub fn predict_displacements(
+    model: &ServedModel,
+    tree: &Tree,
+    actions: &[(usize, Vector3<f64>)],
+    control: &JobControl,
+) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
+    let _timer = InferenceTimer::start(model);
+    let n = tree.len();
+    let mut pending = Vec::new();
+    // Split so that every session gets a share of a small call (a planner's
+    // search round runs on all cores), and large trees get smaller chunks.
+    let per_chunk = super::batcher::graphs_per_batch(n, MAX_BATCH, super::batcher::MAX_PAIRS)
+        .min(actions.len().div_ceil(model.sessions.max(1)))
+        .max(1);
+    for chunk in actions.chunks(per_chunk) {
+        let graphs = chunk
+            .iter()
+            .map(|(node, push)| encode_forward(tree, *node, push))
+            .collect::<Result<Vec<_>, _>>()?;
+        let b = batch(&graphs)?;
+        pending.push((chunk.len(), model.batcher.submit(b, control.clone())));
+    }
+    let mut out = Vec::with_capacity(actions.len());
+    for (count, answer) in pending {
+        let y = answer.wait()?;
+        for k in 0..count {
+            out.push(
+                (0..n)
+                    .map(|j| {
+                        let v = &y.vectors[(k * n + j) * 3..(k * n + j) * 3 + 3];
+                        Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64)
+                    })
+                    .collect(),
+            );
+        }
+    }
+    Ok(out)
+}
+
+/// All non-root nodes ranked by affordance (renormalised over them, so
+/// the root, which cannot be pushed, is never a candidate).
+pub fn rank_candidates(
+    model: &ServedModel,
+    tree: &Tree,
+    targets: &[Point3<f64>],
+    control: &JobControl,
+) -> Result<Vec<Candidate>, InferError> {
+    let _timer = InferenceTimer::start(model);
+    let g = encode_policy(tree, targets)?;
+    let b = batch(std::slice::from_ref(&g))?;
+    let y = model.batcher.run(b, control.clone())?;
+    let affordance = y.affordance.ok_or_else(|| InferError::NotAPolicy {
+        model: model.name.clone(),
+    })?;
+    let n = tree.len();
+    let total: f64 = (1..n).map(|j| affordance[j] as f64).sum();
+    let mut candidates: Vec<Candidate> = (1..n)
+        .map(|j| Candidate {
+            node: j,
+            affordance: if total > 0.0 {
+                affordance[j] as f64 / total
+            } else {
+                1.0 / (n - 1) as f64
+            },
+            push: [
+                y.vectors[j * 3] as f64,
+                y.vectors[j * 3 + 1] as f64,
+                y.vectors[j * 3 + 2] as f64,
+            ],
+            rank: 0,
+        })
+        .collect();
+    candidates.sort_by(|a, b| {
+        b.affordance
+            .total_cmp(&a.affordance)
+            .then(a.node.cmp(&b.node))
+    });
+    for (k, c) in candidates.iter_mut().enumerate() {
+        c.rank = k + 1;
+    }
+    Ok(candidates)
+}
+
+/// Records how long one call into a model took (queueing, batching and
+/// running), as `treemanip_inference_seconds{model}`, whoever made the call:
+/// a `/v1/forward` or `/v1/policy` request, or the planner's push search.
+struct InferenceTimer<'a> {
+    model: &'a ServedModel,
+    started: std::time::Instant,
+}
+
+impl<'a> InferenceTimer<'a> {
+    fn start(model: &'a ServedModel) -> Self {
+        Self {
+            model,
+            started: std::time::Instant::now(),
+        }
+    }
+}
+
+impl Drop for InferenceTimer<'_> {
+    fn drop(&mut self) {
+        metrics::histogram!("treemanip_inference_seconds", "model" => self.model.name.clone())
+            .record(self.started.elapsed().as_secs_f64());
+    }
+}

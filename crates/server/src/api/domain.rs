@@ -1,0 +1,78 @@
+//! Refusing (or, when asked, flagging) requests outside a model's domain
+//! ([`treemanip_core::model::domain`]).
+
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+
+use super::error::ApiError;
+use treemanip_core::model::domain::Violation;
+use treemanip_core::tree::Tree;
+use treemanip_infer::models::ServedModel;
+
+/// A note on an answer that was given anyway.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Warning {
+    /// `out_of_domain`.
+    pub code: String,
+    pub message: String,
+    pub details: Value,
+}
+
+fn details(v: &Violation, model: &ServedModel) -> Value {
+    json!({
+        "model": model.name,
+        "quantity": v.quantity,
+        "value": v.value,
+        "min": v.min,
+        "max": v.max,
+        "node": v.node,
+    })
+}
+
+/// Checks `tree` and the forward model's pushes (node, |T|) against
+/// `model`'s domain. A quantity outside it is a 422 `out_of_domain` naming
+/// it, its bound and its node, unless `allow` is set; then it, like every
+/// tree size outside the evaluated range, becomes a warning.
+pub fn check(
+    model: &ServedModel,
+    tree: &Tree,
+    pushes: &[(usize, f64)],
+    allow: bool,
+) -> Result<Vec<Warning>, ApiError> {
+    let domain = &model.domain;
+    let mut violations = domain.check_tree(tree);
+    violations.extend(
+        pushes
+            .iter()
+            .filter_map(|&(node, length)| domain.check_push(node, length)),
+    );
+    if !allow && let Some(v) = violations.iter().find(|v| v.refused) {
+        let all: Vec<Value> = violations
+            .iter()
+            .filter(|v| v.refused)
+            .map(|v| details(v, model))
+            .collect();
+        let mut d = details(v, model);
+        d["violations"] = Value::Array(all);
+        return Err(ApiError::out_of_domain(format!(
+            "{v} (the {} model was trained on such trees only); set `allow_out_of_domain` to get an answer anyway",
+            model.name
+        ))
+        .with_details(d));
+    }
+    Ok(violations
+        .iter()
+        .map(|v| Warning {
+            code: "out_of_domain".to_owned(),
+            message: if v.refused {
+                format!("{v}: the answer is extrapolation")
+            } else {
+                format!(
+                    "the tree has {} nodes; the {} model is evaluated on {} to {}",
+                    v.value, model.name, v.min, v.max
+                )
+            },
+            details: details(v, model),
+        })
+        .collect())
+}

@@ -1,0 +1,244 @@
+//! The one error shape every endpoint answers with:
+//! `{"error": {"code": "...", "message": "...", "details": ...}}`.
+//!
+//! | status | code | when |
+//! | --- | --- | --- |
+//! | 400 | `malformed_json` | the body is not JSON of the right shape |
+//! | 404 | `not_found` | no such route |
+//! | 405 | `method_not_allowed` | wrong method for the route |
+//! | 413 | `too_large` | body or tree over the limits |
+//! | 415 | `unsupported_media_type` | not `application/json` |
+//! | 422 | `invalid_tree`, `invalid_argument`, `push_infeasible`, `out_of_domain` | the request is well formed but not usable (`out_of_domain`: outside what the model was trained on) |
+//! | 503 | `not_ready`, `overloaded` | models not loaded / too much work queued |
+//! | 504 | `timeout` | the request's time budget (or its `timeout_ms`) ran out |
+//! | 500 | `internal` | a bug: never caused by what a client sent |
+
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use serde_json::{Value, json};
+use treemanip_core::planner::PlanError;
+use treemanip_infer::InferError;
+
+/// The API's error codes: each has one HTTP status. Clients branch on the
+/// code; `openapi.yaml`'s `Error.code` enum lists exactly these (tested).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ErrorCode {
+    MalformedJson,
+    NotFound,
+    MethodNotAllowed,
+    TooLarge,
+    UnsupportedMediaType,
+    InvalidTree,
+    InvalidArgument,
+    PushInfeasible,
+    OutOfDomain,
+    NotReady,
+    Overloaded,
+    Timeout,
+    Internal,
+}
+
+impl ErrorCode {
+    pub const ALL: [ErrorCode; 13] = [
+        ErrorCode::MalformedJson,
+        ErrorCode::NotFound,
+        ErrorCode::MethodNotAllowed,
+        ErrorCode::TooLarge,
+        ErrorCode::UnsupportedMediaType,
+        ErrorCode::InvalidTree,
+        ErrorCode::InvalidArgument,
+        ErrorCode::PushInfeasible,
+        ErrorCode::OutOfDomain,
+        ErrorCode::NotReady,
+        ErrorCode::Overloaded,
+        ErrorCode::Timeout,
+        ErrorCode::Internal,
+    ];
+
+    /// The code as clients see it.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            ErrorCode::MalformedJson => "malformed_json",
+            ErrorCode::NotFound => "not_found",
+            ErrorCode::MethodNotAllowed => "method_not_allowed",
+            ErrorCode::TooLarge => "too_large",
+            ErrorCode::UnsupportedMediaType => "unsupported_media_type",
+            ErrorCode::InvalidTree => "invalid_tree",
+            ErrorCode::InvalidArgument => "invalid_argument",
+            ErrorCode::PushInfeasible => "push_infeasible",
+            ErrorCode::OutOfDomain => "out_of_domain",
+            ErrorCode::NotReady => "not_ready",
+            ErrorCode::Overloaded => "overloaded",
+            ErrorCode::Timeout => "timeout",
+            ErrorCode::Internal => "internal",
+        }
+    }
+
+    /// The HTTP status every answer with this code has.
+    pub const fn status(self) -> StatusCode {
+        match self {
+            ErrorCode::MalformedJson => StatusCode::BAD_REQUEST,
+            ErrorCode::NotFound => StatusCode::NOT_FOUND,
+            ErrorCode::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
+            ErrorCode::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
+            ErrorCode::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ErrorCode::InvalidTree
+            | ErrorCode::InvalidArgument
+            | ErrorCode::PushInfeasible
+            | ErrorCode::OutOfDomain => StatusCode::UNPROCESSABLE_ENTITY,
+            ErrorCode::NotReady | ErrorCode::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
+            ErrorCode::Timeout => StatusCode::GATEWAY_TIMEOUT,
+            ErrorCode::Internal => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+}
+
+impl PartialEq<&str> for ErrorCode {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_str() == *other
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct ApiError {
+    pub status: StatusCode,
+    /// Stable, machine-readable: clients branch on this, not on `message`.
+    pub code: ErrorCode,
+    /// For people: says what is wrong and, where possible, how to fix it.
+    pub message: String,
+    pub details: Value,
+}
+
+impl ApiError {
+    pub fn new(code: ErrorCode, message: impl Into<String>) -> Self {
+        Self {
+            status: code.status(),
+            code,
+            message: message.into(),
+            details: Value::Null,
+        }
+    }
+
+    pub fn not_found(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::NotFound, message)
+    }
+
+    pub fn not_ready(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::NotReady, message)
+    }
+
+    pub fn malformed(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::MalformedJson, message)
+    }
+
+    pub fn invalid_tree(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::InvalidTree, message)
+    }
+
+    pub fn invalid_argument(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::InvalidArgument, message)
+    }
+
+    /// `invalid_argument` naming the request field at fault.
+    pub fn invalid_field(field: &str, message: impl Into<String>) -> Self {
+        Self::invalid_argument(message).with_details(json!({ "field": field }))
+    }
+
+    pub fn out_of_domain(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::OutOfDomain, message)
+    }
+
+    pub fn too_large(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::TooLarge, message)
+    }
+
+    pub fn overloaded() -> Self {
+        Self::new(
+            ErrorCode::Overloaded,
+            "the server is busy with other requests; retry shortly",
+        )
+    }
+
+    pub fn timeout(seconds: f64) -> Self {
+        Self::new(
+            ErrorCode::Timeout,
+            format!("the request did not finish within its {seconds:.1} s budget"),
+        )
+    }
+
+    /// A request whose deadline passed while its model job was queued.
+    pub fn deadline(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::Timeout, message)
+    }
+
+    pub fn internal(message: impl Into<String>) -> Self {
+        Self::new(ErrorCode::Internal, message)
+    }
+
+    pub fn with_details(mut self, details: Value) -> Self {
+        self.details = details;
+        self
+    }
+}
+
+/// A failed model job: a deadline that passed or a client that went away is
+/// a timeout (nobody reads a cancelled job's answer); anything else is ours.
+impl From<InferError> for ApiError {
+    fn from(e: InferError) -> Self {
+        match e {
+            InferError::DeadlineExceeded | InferError::Cancelled => {
+                ApiError::deadline(e.to_string())
+            }
+            _ => ApiError::internal(format!("inference failed: {e}")),
+        }
+    }
+}
+
+impl From<PlanError> for ApiError {
+    fn from(e: PlanError) -> Self {
+        match e {
+            PlanError::StartInCollision => ApiError::invalid_field("robot.start", e.to_string()),
+            PlanError::NoForwardModel => ApiError::not_ready(e.to_string()),
+            PlanError::Predict(p) => match p.source_as::<InferError>() {
+                Some(InferError::DeadlineExceeded | InferError::Cancelled) => {
+                    ApiError::deadline(p.to_string())
+                }
+                _ => ApiError::internal(format!("inference failed: {p}")),
+            },
+        }
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let body = json!({
+            "error": { "code": self.code.as_str(), "message": self.message, "details": self.details }
+        });
+        (self.status, axum::Json(body)).into_response()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `openapi.yaml`'s `Error.code` enum is exactly [`ErrorCode::ALL`].
+    #[test]
+    fn the_openapi_error_codes_are_the_enum() {
+        let spec = super::super::OPENAPI_YAML;
+        let at = spec.find("    Error:\n").expect("an Error schema");
+        let rest = &spec[at..];
+        let start = rest.find("enum: [").expect("a code enum") + "enum: [".len();
+        let end = start + rest[start..].find(']').unwrap();
+        let listed: Vec<&str> = rest[start..end]
+            .split(',')
+            .map(str::trim)
+            .filter(|c| !c.is_empty())
+            .collect();
+        let ours: Vec<&str> = ErrorCode::ALL.iter().map(|c| c.as_str()).collect();
+        assert_eq!(listed, ours);
+        for code in ErrorCode::ALL {
+            assert!(code.status().is_client_error() || code.status().is_server_error());
+        }
+    }
+}

@@ -1,0 +1,205 @@
+//! The HTTP layer: routes, request/response types, error mapping, limits
+//! and metrics. It owns no computation; CPU work (inference, simulation,
+//! planning) runs on tokio's blocking pool behind an admission limit, so
+//! the async executor only moves bytes.
+//!
+//! Routes: `GET /healthz`, `GET /readyz`, `GET /metrics`, `GET /openapi.yaml`,
+//! `GET /v1/models`, `POST /v1/forward`, `POST /v1/policy`, `POST /v1/plan`,
+//! `POST /v1/simulate`, `POST /v1/trees/urdf`, `GET /v1/trees/example`,
+//! `POST /v1/robot/link-poses`, and the viewer page `GET /viewer`.
+//! Described in `openapi.yaml`.
+
+pub mod domain;
+pub mod error;
+pub mod json;
+pub mod metrics;
+pub mod plan;
+pub mod predict;
+pub mod probe;
+pub mod scene;
+pub mod server;
+pub mod shutdown;
+pub mod simulate;
+pub mod state;
+pub mod timing;
+pub mod tree_json;
+pub mod v2;
+pub mod validate;
+pub mod viewer;
+
+use axum::Router;
+use axum::extract::{DefaultBodyLimit, State};
+use axum::http::header;
+use axum::response::IntoResponse;
+use axum::routing::{get, post};
+use serde_json::json;
+
+use error::{ApiError, ErrorCode};
+pub use state::{AppState, Limits, ModelRef, REQUIRED_MODELS};
+
+pub fn router(state: AppState) -> Router {
+    let body_limit = state.limits.max_body_bytes;
+    let mut routes = Router::new();
+    if state.limits.fault_injection {
+        // For tests of what a bug does to the server: a handler that
+        // panics, and one whose blocking job panics.
+        routes = routes.route("/debug/panic", post(injected_panic)).route(
+            "/debug/panic-worker",
+            post(|State(state): State<AppState>| async move {
+                state
+                    .run_blocking("/debug/panic-worker", || -> Result<(), ApiError> {
+                        panic!("injected fault in a worker")
+                    })
+                    .await
+            }),
+        );
+    }
+    routes
+        .route("/healthz", get(healthz))
+        .route("/readyz", get(readyz))
+        .route("/metrics", get(render_metrics))
+        .route("/openapi.yaml", get(openapi))
+        .route("/v1/models", get(list_models))
+        .route("/v1/forward", post(predict::forward))
+        .route("/v1/policy", post(predict::policy))
+        .route("/v1/plan", post(plan::plan))
+        .route("/v1/simulate", post(simulate::simulate))
+        .route("/v1/trees/urdf", post(scene::tree_from_urdf))
+        .route("/v1/trees/example", get(scene::example_tree))
+        .route("/v1/robot/link-poses", post(scene::link_poses))
+        .route("/viewer", get(viewer::index))
+        .route("/viewer/{*file}", get(viewer::asset))
+        .route("/v2", get(v2::server_metadata))
+        .route("/v2/health/live", get(v2::live))
+        .route("/v2/health/ready", get(v2::ready))
+        .route("/v2/models/{name}", get(v2::model_metadata))
+        .route("/v2/models/{name}/ready", get(v2::model_ready))
+        .route("/v2/models/{name}/infer", post(v2::infer))
+        .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            shutdown::guard,
+        ))
+        .layer(axum::middleware::from_fn(metrics::track))
+        .layer(axum::middleware::from_fn(timing::headers))
+        // A bug in one handler is that request's 500, in the error shape;
+        // the server keeps serving.
+        .layer(tower_http::catch_panic::CatchPanicLayer::custom(
+            panic_response,
+        ))
+        .layer(DefaultBodyLimit::max(body_limit))
+        // Every request gets an id (a client's own `x-request-id` is kept),
+        // echoed in the answer and named in its log lines.
+        .layer(tower_http::request_id::PropagateRequestIdLayer::x_request_id())
+        .layer(timing::RequestSpanLayer::new())
+        .layer(tower_http::request_id::SetRequestIdLayer::x_request_id(
+            tower_http::request_id::MakeRequestUuid,
+        ))
+        .with_state(state)
+}
+
+async fn injected_panic() -> ApiError {
+    panic!("injected fault")
+}
+
+fn panic_response(panic: Box<dyn std::any::Any + Send + 'static>) -> axum::response::Response {
+    let what = panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown".to_owned());
+    tracing::error!(panic = %what, "a request handler panicked");
+    ::metrics::counter!("treemanip_panics_total").increment(1);
+    ApiError::internal("the server hit a bug while answering this request (it keeps serving)")
+        .into_response()
+}
+
+/// The process is up and answering.
+async fn healthz() -> axum::Json<serde_json::Value> {
+    axum::Json(json!({ "status": "ok" }))
+}
+
+/// Ready means: every model the endpoints need is loaded.
+async fn readyz(State(state): State<AppState>) -> Result<axum::Json<serde_json::Value>, ApiError> {
+    let loaded: Vec<String> = state
+        .models
+        .as_ref()
+        .map(|m| m.models.iter().map(|m| m.name.clone()).collect())
+        .unwrap_or_default();
+    let missing: Vec<&str> = REQUIRED_MODELS
+        .iter()
+        .copied()
+        .filter(|r| !loaded.iter().any(|l| l == r))
+        .collect();
+    let broken: serde_json::Map<String, serde_json::Value> = state
+        .models
+        .as_ref()
+        .map(|m| {
+            m.broken
+                .iter()
+                .map(|(name, why)| (name.clone(), json!(why)))
+                .collect()
+        })
+        .unwrap_or_default();
+    if !missing.is_empty() {
+        return Err(ApiError::not_ready(format!(
+            "models not loaded: {} (POST /v1/simulate works without them)",
+            missing.join(", ")
+        ))
+        .with_details(json!({ "missing": missing, "loaded": loaded, "broken": broken })));
+    }
+    Ok(axum::Json(json!({
+        "status": "ready",
+        "models": loaded,
+        "broken": broken,
+        "backend": state.backend_name(),
+    })))
+}
+
+/// Every loaded model with its metadata.
+async fn list_models(State(state): State<AppState>) -> axum::Json<serde_json::Value> {
+    let models: Vec<serde_json::Value> = state
+        .models
+        .as_ref()
+        .map(|set| {
+            set.models
+                .iter()
+                .map(|m| {
+                    json!({
+                        "name": m.name,
+                        "task": m.task.name(),
+                        "file": m.file.file_name().map(|f| f.to_string_lossy().into_owned()),
+                        "metadata": m.card,
+                    })
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    axum::Json(json!({ "backend": state.backend_name(), "models": models }))
+}
+
+async fn render_metrics(State(state): State<AppState>) -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
+        state.metrics.render(),
+    )
+}
+
+/// The API description, embedded at build time.
+pub const OPENAPI_YAML: &str = include_str!("../../../../openapi.yaml");
+
+async fn openapi() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "application/yaml")], OPENAPI_YAML)
+}
+
+async fn not_found(uri: axum::http::Uri) -> ApiError {
+    ApiError::not_found(format!("no route for {}", uri.path()))
+}
+
+async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> ApiError {
+    ApiError::new(
+        ErrorCode::MethodNotAllowed,
+        format!("{method} is not allowed on {}", uri.path()),
+    )
+}

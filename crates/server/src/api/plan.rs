@@ -1,0 +1,328 @@
+//! `POST /v1/plan`: turns the JSON request into a [`planner::Query`] and
+//! the [`planner::Plan`] into JSON; the planning is in [`treemanip_core::planner`].
+
+use std::time::Duration;
+
+use axum::extract::State;
+use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::AppState;
+use super::domain::{self, Warning};
+use super::error::ApiError;
+use super::json::ApiJson;
+use super::state::ModelInfo;
+use super::tree_json::TreeJson;
+use super::validate::{MAX_DISTANCE, joints, near_point, targets, vector3};
+use treemanip_core::graph::Task;
+use treemanip_core::planner::base::{BasePose, BaseRegion};
+use treemanip_core::planner::{self, Attempt, Predictor, Query, Stance, Strategy};
+use treemanip_core::robot::collision::Obstacle;
+use treemanip_core::robot::trajectory::TimedPoint;
+use treemanip_core::robot::ur5::{self, JOINT_NAMES};
+
+/// Obstacles a request may list.
+pub const MAX_OBSTACLES: usize = 64;
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BaseRegionJson {
+    pub min: Vec<f64>,
+    pub max: Vec<f64>,
+    #[serde(default)]
+    pub yaw: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotJson {
+    /// Arm base position (m), identity orientation; default (−0.5, 0, 0.1).
+    #[serde(default)]
+    pub base: Option<Vec<f64>>,
+    /// A box the planner may place the base in (instead of `base`).
+    #[serde(default)]
+    pub base_region: Option<BaseRegionJson>,
+    /// Start joint configuration (rad); default the paper's home pose.
+    #[serde(default)]
+    pub start: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ObstacleJson {
+    Box {
+        centre: Vec<f64>,
+        half_extents: Vec<f64>,
+        #[serde(default)]
+        yaw: f64,
+    },
+    Capsule {
+        a: Vec<f64>,
+        b: Vec<f64>,
+        radius: f64,
+    },
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanRequest {
+    pub tree: TreeJson,
+    pub target_positions: Vec<Vec<f64>>,
+    #[serde(default)]
+    pub robot: RobotJson,
+    #[serde(default)]
+    pub obstacles: Vec<ObstacleJson>,
+    #[serde(default)]
+    pub strategy: Strategy,
+    /// Planning budget (ms); default and maximum are server limits.
+    #[serde(default)]
+    pub budget_ms: Option<f64>,
+    /// Policy-ranked nodes searched (`model`, `physics`).
+    #[serde(default, deserialize_with = "super::json::integer::opt_u64")]
+    pub max_candidates: Option<u64>,
+    /// Push predictions allowed (`model`, `physics`).
+    #[serde(default, deserialize_with = "super::json::integer::opt_u64")]
+    pub max_evaluations: Option<u64>,
+    /// Seed of the search and of RRT* (plans are reproducible for a seed).
+    #[serde(default, deserialize_with = "super::json::integer::opt_u64")]
+    pub seed: Option<u64>,
+    /// See [`super::predict::ForwardRequest::allow_out_of_domain`].
+    #[serde(default)]
+    pub allow_out_of_domain: bool,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PlanResponse {
+    /// `planned` or `no_plan`.
+    pub status: &'static str,
+    pub strategy: Strategy,
+    pub node: Option<usize>,
+    pub rank: Option<usize>,
+    pub push: Option<[f64; 3]>,
+    /// Predicted max node distance to the target after the push (m).
+    pub predicted_error: Option<f64>,
+    /// Max node distance to the target if nothing is done (m).
+    pub no_action_error: f64,
+    pub base: BasePose,
+    /// The configuration the trajectory starts from.
+    pub start: [f64; 6],
+    /// Whether the planner chose `start` (base region, no start given).
+    pub start_chosen: bool,
+    pub joint_names: [&'static str; 6],
+    pub trajectory: Vec<TimedPoint>,
+    pub push_start_index: Option<usize>,
+    pub evaluations: usize,
+    pub attempts: Vec<Attempt>,
+    pub total_ms: f64,
+    pub model: ModelInfo,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<Warning>,
+}
+
+fn invalid(field: &str, message: impl Into<String>) -> ApiError {
+    ApiError::invalid_field(field, message)
+}
+
+fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
+    match (&robot.base, &robot.base_region) {
+        (Some(_), Some(_)) => Err(invalid(
+            "robot.base_region",
+            "give either `robot.base` or `robot.base_region`, not both",
+        )),
+        (Some(b), None) => {
+            let p = near_point(b, "robot.base")?;
+            Ok(Stance::Fixed(Isometry3::translation(p.x, p.y, p.z)))
+        }
+        (None, None) => Ok(Stance::Fixed(ur5::default_base())),
+        (None, Some(region)) => {
+            let min = near_point(&region.min, "robot.base_region.min")?.coords;
+            let max = near_point(&region.max, "robot.base_region.max")?.coords;
+            if (0..3).any(|k| min[k] > max[k]) {
+                return Err(invalid(
+                    "robot.base_region",
+                    "`robot.base_region.min` must not exceed `max` in any coordinate",
+                ));
+            }
+            let yaw = match &region.yaw {
+                None => None,
+                Some(y) => match y.as_slice() {
+                    [lo, hi]
+                        if lo.is_finite()
+                            && hi.is_finite()
+                            && lo <= hi
+                            && lo.abs() <= 2.0 * std::f64::consts::PI
+                            && hi.abs() <= 2.0 * std::f64::consts::PI =>
+                    {
+                        Some((*lo, *hi))
+                    }
+                    _ => {
+                        return Err(invalid(
+                            "robot.base_region.yaw",
+                            "`robot.base_region.yaw` must be [low, high] within ±2π rad",
+                        ));
+                    }
+                },
+            };
+            Ok(Stance::Region(BaseRegion { min, max, yaw }))
+        }
+    }
+}
+
+fn obstacles(list: &[ObstacleJson]) -> Result<Vec<Obstacle>, ApiError> {
+    if list.len() > MAX_OBSTACLES {
+        return Err(invalid(
+            "obstacles",
+            format!(
+                "{} obstacles; at most {MAX_OBSTACLES} are accepted",
+                list.len()
+            ),
+        ));
+    }
+    let size = |v: f64, field: &str| {
+        if v.is_finite() && v > 0.0 && v <= MAX_DISTANCE {
+            Ok(v)
+        } else {
+            Err(invalid(
+                field,
+                format!("`{field}` must be positive and at most {MAX_DISTANCE} m"),
+            ))
+        }
+    };
+    list.iter()
+        .map(|o| match o {
+            ObstacleJson::Box {
+                centre,
+                half_extents,
+                yaw,
+            } => {
+                let h = vector3(half_extents, "obstacles.half_extents")?;
+                for k in 0..3 {
+                    size(h[k], "obstacles.half_extents")?;
+                }
+                if !yaw.is_finite() {
+                    return Err(invalid("obstacles.yaw", "`obstacles.yaw` must be finite"));
+                }
+                Ok(Obstacle::Box {
+                    centre: near_point(centre, "obstacles.centre")?,
+                    half_extents: h,
+                    yaw: *yaw,
+                })
+            }
+            ObstacleJson::Capsule { a, b, radius } => Ok(Obstacle::Capsule {
+                a: near_point(a, "obstacles.a")?,
+                b: near_point(b, "obstacles.b")?,
+                radius: size(*radius, "obstacles.radius")?,
+            }),
+        })
+        .collect()
+}
+
+/// A request count within `1..=max`, or its default.
+fn count(value: Option<u64>, default: usize, max: usize, field: &str) -> Result<usize, ApiError> {
+    match value {
+        None => Ok(default.min(max)),
+        Some(v) if v >= 1 && v <= max as u64 => Ok(v as usize),
+        Some(_) => Err(
+            invalid(field, format!("`{field}` must be between 1 and {max}"))
+                .with_details(json!({ "field": field, "max": max })),
+        ),
+    }
+}
+
+pub async fn plan(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<PlanRequest>,
+) -> Result<axum::Json<PlanResponse>, ApiError> {
+    let policy = state.model_for(Task::Policy)?;
+    let forward = match request.strategy {
+        Strategy::Model => Some(state.model_for(Task::Forward)?),
+        _ => None,
+    };
+    let tree = request.tree.to_tree(state.limits.max_nodes)?;
+    let targets = targets(&request.target_positions, &tree)?;
+    let warnings = domain::check(&policy, &tree, &[], request.allow_out_of_domain)?;
+    let max_ms = state.limits.max_plan_budget.as_secs_f64() * 1e3;
+    let budget_ms = request.budget_ms.unwrap_or(max_ms.min(2000.0));
+    if !(budget_ms.is_finite() && budget_ms > 0.0 && budget_ms <= max_ms) {
+        return Err(ApiError::invalid_argument(format!(
+            "`budget_ms` must be positive and at most {max_ms:.0}"
+        ))
+        .with_details(json!({ "field": "budget_ms", "max": max_ms })));
+    }
+    let mut query = Query::new(tree, targets);
+    query.stance = stance(&request.robot)?;
+    query.start = request
+        .robot
+        .start
+        .as_deref()
+        .map(|q| joints(q, "robot.start"))
+        .transpose()?;
+    query.obstacles = obstacles(&request.obstacles)?;
+    query.strategy = request.strategy;
+    query.budget = Duration::from_secs_f64(budget_ms / 1e3);
+    let nodes = query.tree.len().saturating_sub(1).max(1);
+    query.max_candidates = count(
+        request.max_candidates,
+        planner::DEFAULT_CANDIDATES,
+        nodes,
+        "max_candidates",
+    )?;
+    query.max_evaluations = Some(count(
+        request.max_evaluations,
+        query.evaluations(),
+        state.limits.max_plan_evaluations,
+        "max_evaluations",
+    )?);
+    query.seed = request.seed.unwrap_or(1);
+    let info = ModelInfo::of(&policy, &state);
+    let planner = state.planner.clone();
+    let response = state
+        .run_blocking("/v1/plan", move || {
+            let plan = planner.plan(
+                &query,
+                &*policy,
+                forward.as_deref().map(|m| m as &dyn Predictor),
+            )?;
+            Ok(response(plan, info, warnings))
+        })
+        .await?;
+    Ok(axum::Json(response))
+}
+
+fn response(plan: planner::Plan, model: ModelInfo, warnings: Vec<Warning>) -> PlanResponse {
+    for a in &plan.attempts {
+        let outcome = serde_json::to_value(a.outcome)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_owned))
+            .unwrap_or_default();
+        ::metrics::counter!("treemanip_plan_attempts_total", "outcome" => outcome).increment(1);
+    }
+    let status = if plan.plan.is_some() {
+        "planned"
+    } else {
+        "no_plan"
+    };
+    ::metrics::counter!("treemanip_plans_total", "status" => status).increment(1);
+    let chosen = plan.plan;
+    PlanResponse {
+        status,
+        strategy: plan.strategy,
+        node: chosen.as_ref().map(|p| p.node),
+        rank: chosen.as_ref().map(|p| p.rank),
+        push: chosen.as_ref().map(|p| [p.push.x, p.push.y, p.push.z]),
+        predicted_error: plan.predicted_error,
+        no_action_error: plan.no_action_error,
+        base: plan.base,
+        start: plan.start,
+        start_chosen: plan.start_chosen,
+        joint_names: JOINT_NAMES,
+        push_start_index: chosen.as_ref().map(|p| p.push_start_index),
+        trajectory: chosen.map(|p| p.trajectory).unwrap_or_default(),
+        evaluations: plan.evaluations,
+        attempts: plan.attempts,
+        total_ms: plan.total_ms,
+        model,
+        warnings,
+    }
+}

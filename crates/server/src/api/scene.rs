@@ -1,0 +1,284 @@
+//! What a client needs to draw a scene with the server's own geometry:
+//! `POST /v1/trees/urdf` (a tree URDF → tree JSON, through the same parser
+//! as the CLI), `GET /v1/trees/example` (a Space Colonization tree from
+//! the dataset's generator) and `POST /v1/robot/link-poses` (the arm's link
+//! frames and collision shapes along a trajectory, from the same
+//! kinematics the planner uses). The viewer (`GET /viewer`) draws with
+//! these; so can any client, with no second URDF parser or kinematics.
+
+use axum::extract::{RawQuery, State};
+use nalgebra::{Isometry3, Point3, Vector3};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::AppState;
+use super::error::ApiError;
+use super::json::ApiJson;
+use super::tree_json::{TreeJson, tree_error};
+use treemanip_core::planner::base::BasePose;
+use treemanip_core::robot::ur5::{self, LinkShape};
+use treemanip_core::tree::sca::{self, MIN_GENERATED_NODES, ScaError, ScaParams};
+use treemanip_core::tree::urdf::{UrdfError, from_urdf_str};
+
+/// Configurations one `/v1/robot/link-poses` call may ask for.
+pub const MAX_CONFIGURATIONS: usize = 2048;
+/// Example trees are generated with this many nodes unless asked otherwise.
+pub const DEFAULT_EXAMPLE_NODES: usize = 15;
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UrdfRequest {
+    /// A tree URDF document as `treemanip` writes it.
+    pub urdf: String,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct TreeResponse {
+    pub tree: TreeJson,
+    pub nodes: usize,
+    /// The generator's seed (examples only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+}
+
+pub async fn tree_from_urdf(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<UrdfRequest>,
+) -> Result<axum::Json<TreeResponse>, ApiError> {
+    let max_nodes = state.limits.max_nodes;
+    state
+        .run_blocking("/v1/trees/urdf", move || {
+            let tree = from_urdf_str(&request.urdf).map_err(|e| match e {
+                UrdfError::Tree(e) => tree_error(e),
+                e => {
+                    ApiError::invalid_argument(e.to_string()).with_details(json!({"field": "urdf"}))
+                }
+            })?;
+            // Same validation as a tree sent as JSON (node count, shape).
+            let json = TreeJson::from_tree(&tree);
+            json.to_tree(max_nodes)?;
+            Ok(axum::Json(TreeResponse {
+                nodes: tree.len(),
+                tree: json,
+                seed: None,
+            }))
+        })
+        .await
+}
+
+/// `nodes` and `seed` from the query string (both optional).
+fn example_query(query: Option<&str>, max_nodes: usize) -> Result<(usize, u64), ApiError> {
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Params {
+        nodes: Option<String>,
+        seed: Option<String>,
+    }
+    let params: Params = serde_urlencoded::from_str(query.unwrap_or("")).map_err(|e| {
+        ApiError::invalid_argument(format!(
+            "query: {e} (accepted: `nodes`, `seed`, e.g. `?nodes=15&seed=3`)"
+        ))
+    })?;
+    let max = max_nodes.min(treemanip_core::tree::MAX_NODES);
+    let nodes = match params.nodes.as_deref() {
+        None => DEFAULT_EXAMPLE_NODES.min(max),
+        Some(s) => match s.parse::<usize>() {
+            Ok(n) if (MIN_GENERATED_NODES..=max).contains(&n) => n,
+            _ => {
+                return Err(ApiError::invalid_argument(format!(
+                    "`nodes` must be an integer from {MIN_GENERATED_NODES} to {max}, got `{s}`"
+                ))
+                .with_details(json!({"field": "nodes", "min": MIN_GENERATED_NODES, "max": max})));
+            }
+        },
+    };
+    let seed = match params.seed.as_deref() {
+        None => 0,
+        Some(s) => s.parse::<u64>().map_err(|_| {
+            ApiError::invalid_argument(format!(
+                "`seed` must be a non-negative integer below 2^64, got `{s}`"
+            ))
+            .with_details(json!({"field": "seed"}))
+        })?,
+    };
+    Ok((nodes, seed))
+}
+
+pub async fn example_tree(
+    State(state): State<AppState>,
+    RawQuery(query): RawQuery,
+) -> Result<axum::Json<TreeResponse>, ApiError> {
+    let (nodes, seed) = example_query(query.as_deref(), state.limits.max_nodes)?;
+    state
+        .run_blocking("/v1/trees/example", move || {
+            let tree = sca::generate(nodes, seed, &ScaParams::default()).map_err(|e| match e {
+                ScaError::GaveUp { .. } => {
+                    ApiError::invalid_argument(format!("{e}; try another seed"))
+                        .with_details(json!({"field": "seed"}))
+                }
+                e => ApiError::internal(e.to_string()),
+            })?;
+            Ok(axum::Json(TreeResponse {
+                nodes: tree.len(),
+                tree: TreeJson::from_tree(&tree),
+                seed: Some(seed),
+            }))
+        })
+        .await
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BaseJson {
+    /// m, tree frame.
+    pub position: Vec<f64>,
+    /// Rotation about the vertical axis (rad).
+    #[serde(default)]
+    pub yaw: f64,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkPosesRequest {
+    /// Where the arm stands (`/v1/plan`'s `base`); default the paper's mount.
+    #[serde(default)]
+    pub base: Option<BaseJson>,
+    /// Joint configurations (rad), e.g. a plan's trajectory.
+    pub configurations: Vec<Vec<f64>>,
+}
+
+/// A collision shape in its link's frame (m).
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ShapeJson {
+    /// The capsule around segment a–b.
+    Capsule {
+        a: [f64; 3],
+        b: [f64; 3],
+        radius: f64,
+    },
+    /// A box: its centre's pose `[x, y, z, qx, qy, qz, qw]` and half extents.
+    Box {
+        pose: [f64; 7],
+        half_extents: [f64; 3],
+    },
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkJson {
+    pub name: String,
+    /// Index of the parent link (`null` for the root).
+    pub parent: Option<usize>,
+    pub shapes: Vec<ShapeJson>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct LinkPosesResponse {
+    pub base: BasePose,
+    pub joint_names: [&'static str; 6],
+    pub links: Vec<LinkJson>,
+    /// Per configuration, per link: world pose `[x, y, z, qx, qy, qz, qw]`.
+    pub poses: Vec<Vec<[f64; 7]>>,
+}
+
+fn pose7(iso: &Isometry3<f64>) -> [f64; 7] {
+    let t = iso.translation.vector;
+    let q = iso.rotation.coords; // (i, j, k, w)
+    [t.x, t.y, t.z, q.x, q.y, q.z, q.w]
+}
+
+fn xyz(v: &Vector3<f64>) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+pub async fn link_poses(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<LinkPosesRequest>,
+) -> Result<axum::Json<LinkPosesResponse>, ApiError> {
+    let base = match &request.base {
+        None => BasePose::of(&ur5::default_base()),
+        Some(b) => {
+            let p: Point3<f64> = super::validate::near_point(&b.position, "base.position")?;
+            if !(b.yaw.is_finite() && b.yaw.abs() <= 2.0 * std::f64::consts::PI) {
+                return Err(ApiError::invalid_argument(
+                    "`base.yaw` must be finite, within ±2π rad",
+                )
+                .with_details(json!({"field": "base.yaw"})));
+            }
+            BasePose {
+                position: [p.x, p.y, p.z],
+                yaw: b.yaw,
+            }
+        }
+    };
+    let n = request.configurations.len();
+    if n == 0 || n > MAX_CONFIGURATIONS {
+        return Err(ApiError::invalid_argument(format!(
+            "`configurations` must list 1 to {MAX_CONFIGURATIONS} joint configurations, it has {n}"
+        ))
+        .with_details(json!({"field": "configurations", "max": MAX_CONFIGURATIONS})));
+    }
+    let configurations = request
+        .configurations
+        .iter()
+        .map(|q| super::validate::joints(q, "configurations"))
+        .collect::<Result<Vec<_>, _>>()?;
+    let planner = state.planner.clone();
+    state
+        .run_blocking("/v1/robot/link-poses", move || {
+            let robot = planner.robot().clone().with_base(base.isometry());
+            let links = robot
+                .link_shapes()
+                .enumerate()
+                .map(|(i, (name, shapes))| LinkJson {
+                    name: name.to_owned(),
+                    parent: robot.link_parent(i),
+                    shapes: shapes
+                        .iter()
+                        .map(|s| match s {
+                            LinkShape::Capsule { a, b, radius } => ShapeJson::Capsule {
+                                a: xyz(a),
+                                b: xyz(b),
+                                radius: *radius,
+                            },
+                            LinkShape::Box {
+                                centre,
+                                half_extents,
+                            } => ShapeJson::Box {
+                                pose: pose7(centre),
+                                half_extents: xyz(half_extents),
+                            },
+                        })
+                        .collect(),
+                })
+                .collect();
+            let poses = configurations
+                .iter()
+                .map(|q| robot.link_poses(q).iter().map(pose7).collect())
+                .collect();
+            Ok(axum::Json(LinkPosesResponse {
+                base,
+                joint_names: ur5::JOINT_NAMES,
+                links,
+                poses,
+            }))
+        })
+        .await
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::api::error::ErrorCode;
+
+    #[test]
+    fn example_query_defaults_and_bounds() {
+        assert_eq!(example_query(None, 64).unwrap(), (15, 0));
+        assert_eq!(example_query(Some("nodes=20&seed=9"), 64).unwrap(), (20, 9));
+        assert_eq!(example_query(Some("seed=3"), 10).unwrap(), (10, 3));
+        for bad in ["nodes=3", "nodes=65", "nodes=x", "seed=-1", "colour=red"] {
+            let err = example_query(Some(bad), 64).unwrap_err();
+            assert_eq!(err.code, ErrorCode::InvalidArgument, "{bad}");
+        }
+    }
+}

@@ -1,0 +1,102 @@
+//! `POST /v1/simulate`: the ground truth of a push from our simulator, so
+//! any prediction can be checked.
+
+use axum::extract::State;
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::AppState;
+use super::error::{ApiError, ErrorCode};
+use super::json::ApiJson;
+use super::tree_json::TreeJson;
+use treemanip_core::sim::{
+    ContactModel, MAX_PUSH_LENGTH, Push, SimConfig, SimError, SolverReport, simulate as run_sim,
+};
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimulateRequest {
+    pub tree: TreeJson,
+    #[serde(deserialize_with = "super::json::integer::usize")]
+    pub contact_node: usize,
+    /// Gripper displacement T (m).
+    pub push: Vec<f64>,
+    /// `slot` (default) or `pinned`.
+    #[serde(default)]
+    pub contact: ContactModel,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SimulateResponse {
+    /// Steady-state node positions p′ (m).
+    pub final_positions: Vec<[f64; 3]>,
+    /// p′ − p per node (m).
+    pub displacements: Vec<[f64; 3]>,
+    pub contact: ContactModel,
+    pub solver: SolverReport,
+}
+
+pub async fn simulate(
+    State(state): State<AppState>,
+    ApiJson(request): ApiJson<SimulateRequest>,
+) -> Result<axum::Json<SimulateResponse>, ApiError> {
+    let tree = request.tree.to_tree(state.limits.max_nodes)?;
+    let [x, y, z] = <[f64; 3]>::try_from(request.push.as_slice()).map_err(|_| {
+        ApiError::invalid_argument(format!(
+            "`push` must have 3 numbers, it has {}",
+            request.push.len()
+        ))
+        .with_details(json!({ "field": "push" }))
+    })?;
+    let push = Push {
+        node: request.contact_node,
+        vector: nalgebra::Vector3::new(x, y, z),
+    };
+    let config = SimConfig {
+        contact: request.contact,
+        ..SimConfig::default()
+    };
+    let contact = request.contact;
+    let response = state
+        .run_blocking("/v1/simulate", move || {
+            let outcome = run_sim(&tree, &push, &config).map_err(sim_error)?;
+            let xyz = |p: &nalgebra::Point3<f64>| [p.x, p.y, p.z];
+            Ok(SimulateResponse {
+                displacements: outcome
+                    .final_positions
+                    .iter()
+                    .zip(tree.positions())
+                    .map(|(a, b)| {
+                        let d = a - b;
+                        [d.x, d.y, d.z]
+                    })
+                    .collect(),
+                final_positions: outcome.final_positions.iter().map(xyz).collect(),
+                contact,
+                solver: outcome.report,
+            })
+        })
+        .await?;
+    Ok(axum::Json(response))
+}
+
+/// Bad arguments are 422 `invalid_argument`; pushes the physics rejects are
+/// 422 `push_infeasible`, with the simulator's reason.
+fn sim_error(err: SimError) -> ApiError {
+    let details = json!({ "kind": err.kind() });
+    match err {
+        SimError::NodeOutOfRange { .. } | SimError::RootContact => {
+            ApiError::invalid_argument(err.to_string())
+                .with_details(json!({ "field": "contact_node", "kind": err.kind() }))
+        }
+        SimError::NonFinitePush | SimError::PushTooLong { .. } => {
+            ApiError::invalid_argument(format!("{err} (pushes are at most {MAX_PUSH_LENGTH} m)"))
+                .with_details(json!({ "field": "push", "kind": err.kind() }))
+        }
+        _ => ApiError::new(
+            ErrorCode::PushInfeasible,
+            format!("the push cannot be simulated: {err}"),
+        )
+        .with_details(details),
+    }
+}

@@ -1,0 +1,258 @@
+//! The Open Inference Protocol (KServe v2, as Triton and KServe serve it)
+//! beside the domain API, so that the clients users already run
+//! (`tritonclient[http]`, KServe's) work unchanged: server and model
+//! metadata, liveness and readiness, and `infer` on raw tensors, named and
+//! shaped as [`treemanip_infer::contract`] says. JSON tensor data and Triton's
+//! binary tensor data extension are both read; outputs are JSON.
+
+use axum::Json;
+use axum::body::Bytes;
+use axum::extract::{Path, State};
+use axum::http::HeaderMap;
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+
+use super::error::ApiError;
+use super::{AppState, ModelRef};
+use treemanip_infer::contract::{self, DATATYPE, TensorSpec};
+use treemanip_infer::models::MAX_BATCH;
+
+/// `GET /v2`.
+pub async fn server_metadata() -> Json<Value> {
+    Json(json!({
+        "name": "treemanip",
+        "version": env!("CARGO_PKG_VERSION"),
+        "extensions": ["binary_tensor_data"],
+    }))
+}
+
+/// `GET /v2/health/live`.
+pub async fn live() -> Json<Value> {
+    Json(json!({ "live": true }))
+}
+
+/// `GET /v2/health/ready`: ready when every model the domain API needs is.
+pub async fn ready(State(state): State<AppState>) -> Result<Json<Value>, ApiError> {
+    for name in super::REQUIRED_MODELS {
+        model(&state, name)?;
+    }
+    Ok(Json(json!({ "ready": true })))
+}
+
+/// The served model `name`: 404 if there is no such model, 503 if its file
+/// failed to load.
+fn model(state: &AppState, name: &str) -> Result<ModelRef, ApiError> {
+    let set = state
+        .models
+        .as_ref()
+        .ok_or_else(|| ApiError::not_ready("no models are loaded"))?;
+    if set.get(name).is_none() {
+        if let Some((_, why)) = set.broken.iter().find(|(n, _)| n == name) {
+            return Err(ApiError::not_ready(format!(
+                "model {name} failed to load: {why}"
+            )));
+        }
+        return Err(ApiError::not_found(format!("no model named {name:?}")));
+    }
+    state.model_by_name(name)
+}
+
+fn describe(specs: &[TensorSpec]) -> Vec<Value> {
+    specs
+        .iter()
+        .map(|s| {
+            json!({
+                "name": s.name,
+                "datatype": DATATYPE,
+                "shape": s.dims.iter().map(|d| d.oip()).collect::<Vec<_>>(),
+            })
+        })
+        .collect()
+}
+
+/// `GET /v2/models/{name}`: the model's real tensors.
+pub async fn model_metadata(
+    State(state): State<AppState>,
+    Path(name): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    let m = model(&state, &name)?;
+    Ok(Json(json!({
+        "name": m.name,
+        "versions": ["1"],
+        "platform": "onnx",
+        "inputs": describe(&contract::inputs(m.task)),
+        "outputs": describe(&contract::outputs(m.task)),
+    })))
+}
+
+/// `GET /v2/models/{name}/ready`.
+pub async fn model_ready(
+    State(state): State<AppState>,
+    Path(name): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    let m = model(&state, &name)?;
+    Ok(Json(json!({ "name": m.name, "ready": true })))
+}
+
+#[derive(Debug, Deserialize)]
+struct InferRequest {
+    #[serde(default)]
+    id: Option<String>,
+    inputs: Vec<InputTensor>,
+    #[serde(default)]
+    outputs: Option<Vec<RequestedOutput>>,
+    #[serde(default)]
+    #[allow(dead_code)] // accepted as the protocol allows; none are used
+    parameters: Option<Value>,
+}
+
+#[derive(Debug, Deserialize)]
+struct InputTensor {
+    name: String,
+    #[serde(deserialize_with = "super::json::integer::vec_usize")]
+    shape: Vec<usize>,
+    datatype: String,
+    #[serde(default)]
+    data: Option<Value>,
+    #[serde(default)]
+    parameters: Option<Value>,
+}
+
+#[derive(Debug, Deserialize)]
+struct RequestedOutput {
+    name: String,
+}
+
+#[derive(Debug, Serialize)]
+struct OutputTensor {
+    name: &'static str,
+    datatype: &'static str,
+    shape: Vec<usize>,
+    data: Vec<f32>,
+}
+
+fn bad(message: impl Into<String>) -> ApiError {
+    ApiError::invalid_argument(message)
+}
+
+/// Row-major values of a JSON `data` field, flat or nested.
+fn flatten(value: &Value, out: &mut Vec<f32>, name: &str) -> Result<(), ApiError> {
+    match value {
+        Value::Array(items) => items.iter().try_for_each(|v| flatten(v, out, name)),
+        Value::Number(x) => {
+            out.push(x.as_f64().unwrap_or(f64::NAN) as f32);
+            Ok(())
+        }
+        _ => Err(bad(format!("input `{name}`: data must be numbers"))),
+    }
+}
+
+/// `POST /v2/models/{name}/infer`.
+pub async fn infer(
+    State(state): State<AppState>,
+    Path(name): Path<String>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> Result<Json<Value>, ApiError> {
+    let m = model(&state, &name)?;
+    let task = m.task;
+    // Triton's binary extension: a JSON header of this many bytes, then the
+    // tensors' raw bytes in input order.
+    let json_len = match headers.get("inference-header-content-length") {
+        None => body.len(),
+        Some(v) => v
+            .to_str()
+            .ok()
+            .and_then(|v| v.parse::<usize>().ok())
+            .filter(|&n| n <= body.len())
+            .ok_or_else(|| ApiError::malformed("bad Inference-Header-Content-Length"))?,
+    };
+    let request: InferRequest = serde_json::from_slice(&body[..json_len])
+        .map_err(|e| ApiError::malformed(format!("the inference request is not valid: {e}")))?;
+    let mut binary = &body[json_len..];
+    let mut tensors = Vec::with_capacity(request.inputs.len());
+    for input in &request.inputs {
+        if input.datatype != DATATYPE {
+            return Err(bad(format!(
+                "input `{}` is {}; the models take {DATATYPE}",
+                input.name, input.datatype
+            )));
+        }
+        let shape = input.shape.clone();
+        let binary_size = input
+            .parameters
+            .as_ref()
+            .and_then(|p| p.get("binary_data_size"))
+            .and_then(Value::as_u64);
+        let values = match (binary_size, &input.data) {
+            (Some(size), _) => {
+                let size = size as usize;
+                if size > binary.len() || size % 4 != 0 {
+                    return Err(bad(format!(
+                        "input `{}`: {size} bytes of binary data announced, {} left",
+                        input.name,
+                        binary.len()
+                    )));
+                }
+                let (head, rest) = binary.split_at(size);
+                binary = rest;
+                head.chunks_exact(4)
+                    .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect()
+            }
+            (None, Some(data)) => {
+                let mut out = Vec::new();
+                flatten(data, &mut out, &input.name)?;
+                out
+            }
+            (None, None) => return Err(bad(format!("input `{}` has no data", input.name))),
+        };
+        tensors.push((input.name.clone(), shape, values));
+    }
+    let batch = contract::batch_from_tensors(task, tensors, MAX_BATCH, state.limits.max_nodes)
+        .map_err(|e| bad(e.to_string()))?;
+    let wanted: Option<Vec<String>> = request
+        .outputs
+        .map(|o| o.into_iter().map(|o| o.name).collect());
+    let specs = contract::outputs(task);
+    if let Some(names) = &wanted
+        && let Some(unknown) = names.iter().find(|n| !specs.iter().any(|s| s.name == *n))
+    {
+        return Err(bad(format!("`{unknown}` is not an output of {name}")));
+    }
+    let model_name = m.name.clone();
+    let (b, n) = (batch.batch, batch.n);
+    let out = state
+        .run_model_work("/v2/models/infer", None, move |control| {
+            m.batcher().run(batch, control).map_err(ApiError::from)
+        })
+        .await?;
+    let mut outputs = Vec::new();
+    for spec in &specs {
+        if wanted
+            .as_ref()
+            .is_some_and(|w| !w.iter().any(|n| n == spec.name))
+        {
+            continue;
+        }
+        let data = match spec.name {
+            contract::AFFORDANCE => out.affordance.clone().unwrap_or_default(),
+            _ => out.vectors.clone(),
+        };
+        outputs.push(OutputTensor {
+            name: spec.name,
+            datatype: DATATYPE,
+            shape: spec.shape(b, n),
+            data,
+        });
+    }
+    let mut response = json!({
+        "model_name": model_name,
+        "model_version": "1",
+        "outputs": outputs,
+    });
+    if let Some(id) = request.id {
+        response["id"] = json!(id);
+    }
+    Ok(Json(response))
+}
