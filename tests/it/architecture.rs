@@ -122,6 +122,39 @@ fn the_image_binary_carries_no_trainer() {
     }
 }
 
+/// `cargo run --release --bin treemanip-server` resolves the features of
+/// every default member (the trainer included) before it picks the binary:
+/// nothing there may turn on `treemanip-infer`'s `tract`.
+#[test]
+fn the_readme_server_command_resolves_no_tract() {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = Command::new(cargo)
+        .current_dir(ROOT)
+        .args([
+            "tree",
+            "--offline",
+            "--locked",
+            "-e",
+            "normal,build,features",
+        ])
+        .args([
+            "-i",
+            "treemanip-infer",
+            "--target",
+            "x86_64-unknown-linux-gnu",
+        ])
+        .output()
+        .expect("cargo runs");
+    let tree = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(tree.contains("treemanip-infer"), "{tree}");
+    assert!(!tree.contains("feature \"tract\""), "{tree}");
+}
+
 #[test]
 fn lower_crates_do_not_depend_on_higher_ones() {
     let layers = [

@@ -151,19 +151,21 @@ fn sigterm_under_load_finishes_admitted_requests_and_refuses_new_ones() {
         &treemanip::tree::generate(30, 2, &treemanip::tree::ScaParams::default()).unwrap(),
     ))
     .unwrap();
-    // Seconds of work on the embedded backend.
+    // The most work one request may ask for (256 actions at N = 30): about
+    // 0.8 s on an idle 2-core AVX-512 machine, so both are still running
+    // when the signal comes 150 ms after they were sent.
     let heavy = json!({
         "tree": tree,
-        "contact_nodes": (0..64).map(|k| 1 + k % 29).collect::<Vec<_>>(),
-        "pushes": (0..64).map(|k| [0.05, 0.0005 * k as f64, 0.0]).collect::<Vec<_>>(),
+        "contact_nodes": (0..256).map(|k| 1 + k % 29).collect::<Vec<_>>(),
+        "pushes": (0..256).map(|k| [0.05, 0.0002 * k as f64, 0.0]).collect::<Vec<_>>(),
         "allow_out_of_domain": true,
     });
     std::thread::scope(|scope| {
         let admitted: Vec<_> = (0..2)
             .map(|_| scope.spawn(|| server.json("POST", "/v1/forward", &heavy)))
             .collect();
-        // Both are admitted (they take seconds) before the signal.
-        std::thread::sleep(std::time::Duration::from_millis(400));
+        // Both are admitted before the signal.
+        std::thread::sleep(std::time::Duration::from_millis(150));
         server.terminate();
         std::thread::sleep(std::time::Duration::from_millis(100));
         // While draining: new requests are refused with 503, not dropped.
@@ -179,10 +181,15 @@ fn sigterm_under_load_finishes_admitted_requests_and_refuses_new_ones() {
                 .unwrap()
                 .contains("shutting down")
         );
+        // ...and say `Connection: close`, so that a load balancer stops
+        // reusing the connection before the server closes it.
+        let (status, head, _) = server.request("GET", "/v1/models", "", b"");
+        assert_eq!(status, 503);
+        assert!(head.contains("connection: close"), "{head}");
         for handle in admitted {
             let (status, answer) = handle.join().unwrap();
             assert_eq!(status, 200, "an admitted request was lost: {answer}");
-            assert_eq!(answer["displacements"].as_array().unwrap().len(), 64);
+            assert_eq!(answer["displacements"].as_array().unwrap().len(), 256);
         }
     });
     server.wait_for_clean_exit("server did not exit after draining");
