@@ -65,17 +65,31 @@ impl Drop for InFlight {
 /// Middleware: refuses new requests while draining, counts the others.
 /// Health checks pass through so that an orchestrator can still see the
 /// process live while it drains.
+///
+/// While draining, every answer carries `Connection: close`: a load
+/// balancer (or client) then stops sending requests on this connection
+/// instead of racing the final close, when a request written onto an idle
+/// connection just as the server closes it would get no answer at all.
 pub async fn guard(State(state): State<AppState>, request: Request, next: Next) -> Response {
-    if request.uri().path() == "/healthz" {
-        return next.run(request).await;
-    }
-    state.drain.in_flight.fetch_add(1, Ordering::SeqCst);
-    let _counted = InFlight(state.drain.clone());
+    let mut response = if request.uri().path() == "/healthz" {
+        next.run(request).await
+    } else {
+        state.drain.in_flight.fetch_add(1, Ordering::SeqCst);
+        let _counted = InFlight(state.drain.clone());
+        if state.drain.is_draining() {
+            ApiError::not_ready("the server is shutting down; retry on another instance")
+                .into_response()
+        } else {
+            next.run(request).await
+        }
+    };
     if state.drain.is_draining() {
-        return ApiError::not_ready("the server is shutting down; retry on another instance")
-            .into_response();
+        response.headers_mut().insert(
+            axum::http::header::CONNECTION,
+            axum::http::HeaderValue::from_static("close"),
+        );
     }
-    next.run(request).await
+    response
 }
 
 /// SIGINT or SIGTERM.
