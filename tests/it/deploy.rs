@@ -75,3 +75,48 @@ fn the_dataset_job_command_exists() {
     assert!(!run.status.success());
     assert!(String::from_utf8_lossy(&run.stderr).contains("JOB_COMPLETION_INDEX"));
 }
+
+/// The shipped HAProxy configuration keeps what makes failover lose no
+/// request (issue 33, docs/results/failover.md): whole bodies buffered so
+/// every POST can be replayed, retries on the failures of a dying replica,
+/// each on another replica. `haproxy -c` checks it where HAProxy is
+/// installed (scripts/container/setup-podman installs it).
+#[test]
+fn the_haproxy_configuration_replays_requests_of_dead_replicas() {
+    let cfg = std::fs::read_to_string(format!("{ROOT}/deploy/haproxy/haproxy.cfg")).unwrap();
+    let lines: Vec<&str> = cfg
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.starts_with('#'))
+        .collect();
+    for directive in [
+        "option http-buffer-request",
+        "option redispatch 1",
+        "retry-on conn-failure empty-response junk-response 502 503",
+        "option httpchk GET /readyz",
+        "option httplog",
+    ] {
+        assert!(lines.contains(&directive), "missing `{directive}`");
+    }
+    assert!(
+        !lines
+            .iter()
+            .any(|l| l.contains("504") || l.contains("response-timeout"))
+    );
+    let Ok(out) = Command::new("haproxy")
+        .args(["-c", "-f", &format!("{ROOT}/deploy/haproxy/haproxy.cfg")])
+        .env("LB_BIND", "127.0.0.1:18099")
+        .env("REPLICA_1", "127.0.0.1:1")
+        .env("REPLICA_2", "127.0.0.1:2")
+        .env("REPLICA_3", "127.0.0.1:3")
+        .output()
+    else {
+        println!("skipped haproxy -c: HAProxy is not installed");
+        return;
+    };
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
