@@ -10,6 +10,7 @@ use treemanip::dataset::collect::{CollectConfig, SizeStats, collect_size};
 use treemanip::dataset::shard::{FileJob, Shard, assign};
 use treemanip::dataset::{Split, read_size_file, write_size_file};
 use treemanip::sim::{ContactModel, GRIP_OFFSET, Hold};
+use treemanip::tree::StiffnessVariation;
 use treemanip::tree::render::{Arrow, Figure, Layer};
 
 use crate::trees::{NodeSizes, parse_sizes};
@@ -53,6 +54,15 @@ pub struct CollectArgs {
     /// Contact model: `slot` or `pinned`.
     #[arg(long, default_value = "slot")]
     contact: ContactModel,
+    /// Vary each branch's stiffness away from the radius formula by a
+    /// log-normal factor exp(ε), ε ~ N(0, σ²) (0: the paper's data; 0.5 for
+    /// stiffness-aware models; see `tree::stiffness`).
+    #[arg(long, default_value_t = 0.0)]
+    stiffness_sigma: f64,
+    /// Multiply each tree's stiffness by one factor, log-uniform in
+    /// [1/G, G] (1: none).
+    #[arg(long, default_value_t = 1.0)]
+    stiffness_global: f64,
     /// Collect only shard INDEX of COUNT (`0/4`): whole files, balanced
     /// over the shards, plus `shard-INDEX-of-COUNT.json`; join the shards
     /// with `dataset merge`.
@@ -135,8 +145,16 @@ fn collect(args: CollectArgs) -> anyhow::Result<()> {
         seed: args.seed,
         trees_per_size: args.trees_per_size,
         contact: args.contact,
+        stiffness: StiffnessVariation {
+            branch_log_sigma: args.stiffness_sigma,
+            global_factor: args.stiffness_global,
+        },
         ..CollectConfig::default()
     };
+    config
+        .stiffness
+        .validate()
+        .map_err(|e| anyhow::anyhow!("--stiffness-sigma/--stiffness-global: {e}"))?;
     let shard = shard_of(&args)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;

@@ -20,8 +20,11 @@ use super::{Episode, SizeData, Split};
 use crate::seed::derive_seed;
 use crate::sim::sampling::PushDistribution;
 use crate::sim::{ContactModel, SimConfig, simulate};
-use crate::tree::ScaParams;
 use crate::tree::collection::{CollectionError, tree_set};
+use crate::tree::{ScaParams, StiffnessVariation};
+
+/// Seed part of the trees' stiffness streams (no episode index reaches it).
+const STIFFNESS_STREAM: u64 = u64::MAX - 1;
 
 /// How a dataset is made; recorded next to it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -36,6 +39,12 @@ pub struct CollectConfig {
     pub contact: ContactModel,
     /// Pushes drawn for one episode before giving up on it.
     pub max_attempts: usize,
+    /// Stiffness varied away from the radius formula, per tree
+    /// ([`StiffnessVariation`]); none by default (the paper's data). The
+    /// files then hold each tree's varied stiffness, which `tree_seed`
+    /// alone does not give back.
+    #[serde(default, skip_serializing_if = "StiffnessVariation::is_none")]
+    pub stiffness: StiffnessVariation,
 }
 
 impl Default for CollectConfig {
@@ -48,6 +57,7 @@ impl Default for CollectConfig {
             pushes: PushDistribution::default(),
             contact: ContactModel::Slot,
             max_attempts: 1000,
+            stiffness: StiffnessVariation::NONE,
         }
     }
 }
@@ -126,6 +136,19 @@ pub fn collect_size(
         config.distinct_topologies,
         |_, _| {},
     )?;
+    // Each tree's stiffness variation from its own stream (split, size,
+    // tree index), independent of the episodes' streams.
+    let trees: Vec<_> = trees
+        .into_iter()
+        .enumerate()
+        .map(|(index, (origin, tree))| {
+            let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(
+                config.seed,
+                &[split.seed_part(), n as u64, index as u64, STIFFNESS_STREAM],
+            ));
+            (origin, config.stiffness.apply(&tree, &mut rng))
+        })
+        .collect();
     let sim = SimConfig {
         contact: config.contact,
         ..SimConfig::default()

@@ -6,9 +6,11 @@ pub mod collection;
 pub mod model;
 pub mod render;
 pub mod sca;
+pub mod stiffness;
 pub mod urdf;
 pub mod wood;
 
 pub use model::{Branch, MAX_NODES, MIN_NODES, Tree, TreeError};
 pub use sca::{ScaError, ScaParams, generate, tree_seed};
+pub use stiffness::StiffnessVariation;
 pub use wood::Wood;
