@@ -18,15 +18,7 @@ fn dependencies_with(package: &str, flags: &[&str]) -> Vec<String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(cargo)
         .current_dir(ROOT)
-        .args([
-            "tree",
-            "--offline",
-            "--locked",
-            "-p",
-            package,
-            "-e",
-            "normal,build",
-        ])
+        .args(["tree", "--locked", "-p", package, "-e", "normal,build"])
         .args([
             "--prefix",
             "none",
@@ -130,13 +122,7 @@ fn the_readme_server_command_resolves_no_tract() {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(cargo)
         .current_dir(ROOT)
-        .args([
-            "tree",
-            "--offline",
-            "--locked",
-            "-e",
-            "normal,build,features",
-        ])
+        .args(["tree", "--locked", "-e", "normal,build,features"])
         .args([
             "-i",
             "treemanip-infer",
