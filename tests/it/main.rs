@@ -27,6 +27,7 @@ mod server_basics;
 mod server_faults;
 mod server_models;
 mod sim_convergence;
+mod sim_loads;
 mod sim_physics;
 mod sim_reference;
 mod training;

@@ -97,6 +97,26 @@ fn simulate_answers_with_the_simulators_ground_truth() {
         let d = body["displacements"][j][0].as_f64().unwrap();
         assert_eq!(d, p.x - tree.position(j).x);
     }
+    // Branch loads: the library's, null at the root; the path 0 → 1 → 3
+    // bends, branch 2 (off the path) carries nothing; the default stiffness
+    // implies 5 GPa.
+    let loads = treemanip::sim::loads::branch_loads(&tree, &out.joint_rotations);
+    assert_eq!(body["branch_moment"][0], Value::Null);
+    assert_eq!(body["branch_stress"][0], Value::Null);
+    for j in 1..4 {
+        assert_eq!(body["branch_moment"][j].as_f64(), loads.bending_moment[j]);
+        assert_eq!(body["branch_stress"][j].as_f64(), loads.bending_stress[j]);
+        let e = body["wood_modulus"][j].as_f64().unwrap();
+        assert!((e - 5e9).abs() < 1e-3 * 5e9, "{e}");
+    }
+    assert_eq!(body["branch_moment"][2], json!(0.0));
+    assert!(body["branch_moment"][3].as_f64().unwrap() > 0.0);
+    let peak = &body["peak_stress"];
+    assert_eq!(
+        peak["node"].as_u64(),
+        loads.peak_stress.map(|p| p.node as u64)
+    );
+    assert_eq!(body["contact_force"], body["solver"]["contact_force"]);
     // Pinned contact on request.
     let mut pinned = simulate_body(tree_json());
     pinned["contact"] = json!("pinned");

@@ -15,6 +15,7 @@
 
 pub mod chain;
 pub mod contact;
+pub mod loads;
 pub mod sampling;
 pub mod solver;
 

@@ -9,6 +9,7 @@ use super::AppState;
 use super::error::{ApiError, ErrorCode};
 use super::json::ApiJson;
 use super::tree_json::TreeJson;
+use treemanip_core::sim::loads::{PeakStress, branch_loads};
 use treemanip_core::sim::{
     ContactModel, MAX_PUSH_LENGTH, Push, SimConfig, SimError, SolverReport, simulate as run_sim,
 };
@@ -33,6 +34,22 @@ pub struct SimulateResponse {
     /// p′ − p per node (m).
     pub displacements: Vec<[f64; 3]>,
     pub contact: ContactModel,
+    /// The force the gripper applies to the branch (N); a wrist
+    /// force/torque sensor reads the opposite. The same as
+    /// `solver.contact_force`.
+    pub contact_force: [f64; 3],
+    /// Per node, the bending moment at the base of its branch (N·m); null
+    /// at the root. See `treemanip_core::sim::loads`.
+    pub branch_moment: Vec<Option<f64>>,
+    /// Per node, the twisting moment about its branch's axis (N·m).
+    pub branch_twist: Vec<Option<f64>>,
+    /// Per node, the bending stress at the base of its branch (Pa).
+    pub branch_stress: Vec<Option<f64>>,
+    /// Per node, the wood's Young's modulus its branch's stiffness implies
+    /// (Pa): 5 GPa with the default stiffness, else the caller's.
+    pub wood_modulus: Vec<Option<f64>>,
+    /// The largest bending stress and its node (null: nothing bends).
+    pub peak_stress: Option<PeakStress>,
     pub solver: SolverReport,
 }
 
@@ -60,6 +77,7 @@ pub async fn simulate(
     let response = state
         .run_blocking("/v1/simulate", move || {
             let outcome = run_sim(&tree, &push, &config).map_err(sim_error)?;
+            let loads = branch_loads(&tree, &outcome.joint_rotations);
             let xyz = |p: &nalgebra::Point3<f64>| [p.x, p.y, p.z];
             Ok(SimulateResponse {
                 displacements: outcome
@@ -73,6 +91,12 @@ pub async fn simulate(
                     .collect(),
                 final_positions: outcome.final_positions.iter().map(xyz).collect(),
                 contact,
+                contact_force: outcome.report.contact_force,
+                branch_moment: loads.bending_moment,
+                branch_twist: loads.twisting_moment,
+                branch_stress: loads.bending_stress,
+                wood_modulus: loads.implied_modulus,
+                peak_stress: loads.peak_stress,
                 solver: outcome.report,
             })
         })
