@@ -69,5 +69,13 @@ export class TreeMesh {
   colourNode(i, colour) {
     this.nodes[i].material.color.set(colour);
   }
+
+  /** Each branch its own colour: `colourOf(child node)` → THREE.Color. */
+  colourBranches(colourOf) {
+    for (const b of this.branches) {
+      b.material = b.material.clone();
+      b.material.color.set(colourOf(b.userData.child));
+    }
+  }
 }
 

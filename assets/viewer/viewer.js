@@ -229,7 +229,11 @@ async function predict() {
   const predicted = forward.positions[0];
   state.truth = truth;
   setLayer('predicted', new TreeMesh({ ...state.tree, positions: predicted }, COLOURS.predicted, { opacity: 0.85 }).group);
-  setLayer('truth', new TreeMesh({ ...state.tree, positions: truth.final_positions }, COLOURS.truth, { opacity: 0.85 }).group);
+  const truthMesh = new TreeMesh({ ...state.tree, positions: truth.final_positions }, COLOURS.truth, { opacity: 0.85 });
+  // The true tree's branches by bending stress (blue: none, red: the peak).
+  const peak = truth.peak_stress;
+  if (peak) truthMesh.colourBranches((child) => heat(truth.branch_stress[child] ?? 0, peak.stress));
+  setLayer('truth', truthMesh.group);
   const body = $('error-table').tBodies[0];
   body.replaceChildren();
   let sum = 0;
@@ -248,7 +252,9 @@ async function predict() {
   const warn = forward.warnings ? ` Warnings: ${forward.warnings.map((w) => w.message).join('; ')}` : '';
   $('predict-status').textContent =
     `Node ${node}, push ${push.map(cm).join(', ')} cm: mean error ${cm(sum / n)} cm, max ${cm(max)} cm ` +
-    `(${forward.model.name}).${warn}`;
+    `(${forward.model.name}).` +
+    (peak ? ` Peak bending stress ${(peak.stress / 1e6).toFixed(1)} MPa at branch ${peak.node} (true tree's branches coloured by stress).` : '') +
+    warn;
 }
 
 // ---------------------------------------------------------------- flow 3: target and policy
@@ -278,7 +284,7 @@ function loadTarget() {
   showTarget(target);
 }
 
-/** Blue (low) → red (high) for an affordance share in [0, max]. */
+/** Blue (low) → red (high) for a value in [0, max] (an affordance share, a stress). */
 function heat(value, max) {
   const c = new THREE.Color();
   c.setHSL(0.66 * (1 - Math.min(value / (max || 1), 1)), 0.85, 0.5);

@@ -132,6 +132,7 @@ def run(url, shots, urdf, urdf_nodes):
         c.ok(orange > 50 and green > 50, f"prediction and truth visible ({orange} orange, {green} green pixels)")
         status = browser.find_element(By.ID, "predict-status").text
         c.ok("mean error" in status, f"prediction summary: {status!r}")
+        c.ok("Peak bending stress" in status and "MPa" in status, f"the truth's peak stress shown: {status!r}")
         c.ok(c.error_text() == "", f"no error shown ({c.error_text()!r})")
         c.shot("viewer_predict.png")
 
