@@ -17,6 +17,8 @@ fn main() {
     println!("cargo:rerun-if-env-changed=TREEMANIP_ORT_LIB");
     println!("cargo:rerun-if-env-changed=TREEMANIP_EMBED_ORT");
     println!("cargo:rustc-check-cfg=cfg(embedded_ort)");
+    // The version the library must be, embedded or not (`ORT_VERSION`).
+    println!("cargo:rustc-env=TREEMANIP_ORT_VERSION={VERSION}");
     if std::env::var("TREEMANIP_EMBED_ORT").is_ok_and(|v| v == "0") {
         return;
     }
@@ -36,7 +38,6 @@ fn main() {
     match library {
         Some(lib) if std::fs::copy(&lib, &embedded).is_ok() => {
             println!("cargo:rustc-cfg=embedded_ort");
-            println!("cargo:rustc-env=TREEMANIP_ORT_VERSION={VERSION}");
         }
         _ => println!(
             "cargo:warning=ONNX Runtime {VERSION} could not be fetched from PyPI: building without it (the server then needs --ort-dylib, or the `tract` feature)"

@@ -206,8 +206,9 @@ fn no_engine_message(requested: Option<&Path>, tract_forced: bool) -> String {
     )
 }
 
-/// The ONNX Runtime version the build embeds and `scripts/fetch-onnxruntime` fetches.
-pub const ORT_VERSION: &str = "1.31.1";
+/// The ONNX Runtime version the build embeds and `scripts/fetch-onnxruntime`
+/// fetches (`build.rs` is where it is set).
+pub const ORT_VERSION: &str = env!("TREEMANIP_ORT_VERSION");
 
 /// One loaded model.
 pub struct OnnxModel {
@@ -343,14 +344,6 @@ impl OnnxModel {
         } else {
             treemanip_core::graph::Task::Forward
         }
-    }
-
-    /// One metadata value.
-    pub fn meta(&self, key: &str) -> Option<&str> {
-        self.metadata
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.as_str())
     }
 }
 

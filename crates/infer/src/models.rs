@@ -12,7 +12,6 @@ use super::{Backend, InferError, LoadProblem, OnnxModel, init_backend, read_meta
 use treemanip_core::graph::contract::ModelOutput;
 use treemanip_core::graph::{FEATURE_LAYOUT_VERSION, Task, batch, encode_forward, encode_policy};
 use treemanip_core::model::card::ModelCard;
-use treemanip_core::model::domain::Domain;
 use treemanip_core::planner::Candidate;
 use treemanip_core::tree::Tree;
 
@@ -61,11 +60,8 @@ pub struct ServedModel {
     pub name: String,
     pub task: Task,
     pub file: PathBuf,
-    pub metadata: Vec<(String, String)>,
     /// What the model is and what it answers for, from its metadata.
     pub card: ModelCard,
-    /// Trees and pushes the model answers for (`card.domain.domain`).
-    pub domain: Domain,
     /// Sessions, each with its batching worker.
     pub sessions: usize,
     batcher: Batcher,
@@ -106,6 +102,8 @@ impl ServedModel {
                 expected: FEATURE_LAYOUT_VERSION,
             }));
         }
+        // Before any session is made: a file without a card costs nothing.
+        let card = ModelCard::from_metadata(&metadata).map_err(|e| problem(e.into()))?;
         let mut sessions = (0..spread.count.max(1))
             .map(|_| {
                 OnnxModel::with_threads(&bytes, metadata.clone(), Some(spread.threads.max(1)))
@@ -119,28 +117,18 @@ impl ServedModel {
         for session in &mut sessions {
             canary(session, task).map_err(|e| problem(LoadProblem::Canary(e.to_string())))?;
         }
-        let card = ModelCard::from_metadata(&metadata).map_err(|e| problem(e.into()))?;
         let name = path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
         Ok(Self {
-            domain: card.domain.domain,
             card,
             sessions: sessions.len(),
             batcher: Batcher::start(&name, sessions, limits),
             name,
             task,
             file: path.to_path_buf(),
-            metadata,
         })
-    }
-
-    pub fn meta(&self, key: &str) -> Option<&str> {
-        self.metadata
-            .iter()
-            .find(|(k, _)| k == key)
-            .map(|(_, v)| v.as_str())
     }
 
     /// Runs a batch through the model's queue (batched with other callers'

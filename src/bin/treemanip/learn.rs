@@ -412,11 +412,8 @@ pub fn eval_learned(task: Task, args: EvalLearnedArgs) -> anyhow::Result<()> {
             path.display(),
             task.name()
         );
-        if let Some(cfg) = model.meta("training_config")
-            && let Ok(v) = serde_json::from_str::<serde_json::Value>(cfg)
-            && let Some(sizes) = v["sizes"].as_array()
-        {
-            trained.extend(sizes.iter().filter_map(|s| s.as_u64().map(|s| s as usize)));
+        if let Ok(card) = ModelCard::from_metadata(&model.metadata) {
+            trained.extend(card.training_data.sizes);
         }
         models.push((label.to_owned(), model));
     }

@@ -91,7 +91,7 @@ pub enum CardError {
         hint: &'static str,
     },
     #[error("its metadata `{key}` is not valid: {reason}")]
-    Invalid { key: &'static str, reason: String },
+    Invalid { key: String, reason: String },
 }
 
 /// Fields whose metadata value is a JSON document (the rest are text).
@@ -162,42 +162,35 @@ impl ModelCard {
                         ""
                     },
                 })?;
+            let invalid = |reason: String| CardError::Invalid {
+                key: key.to_owned(),
+                reason,
+            };
             let value = if JSON_KEYS.contains(&key) {
-                serde_json::from_str(text).map_err(|e| CardError::Invalid {
-                    key,
-                    reason: e.to_string(),
-                })?
+                serde_json::from_str(text).map_err(|e| invalid(e.to_string()))?
             } else if matches!(key, "feature_layout_version" | "seed") {
-                let n: u64 = text.trim().parse().map_err(|_| CardError::Invalid {
-                    key,
-                    reason: format!("{text:?} is not a whole number"),
-                })?;
+                let n: u64 = text
+                    .trim()
+                    .parse()
+                    .map_err(|_| invalid(format!("{text:?} is not a whole number")))?;
                 Value::from(n)
             } else {
                 Value::String(text.to_owned())
             };
             fields.insert(key.to_owned(), value);
         }
-        // Each field alone, so that an error names its key.
-        for key in KEYS {
-            let value = fields[key].clone();
-            let check = match key {
-                "task" => serde_json::from_value::<Task>(value).map(drop),
-                "training_data" => serde_json::from_value::<TrainingData>(value).map(drop),
-                "training" => serde_json::from_value::<TrainingRun>(value).map(drop),
-                "domain" => serde_json::from_value::<DomainRecord>(value).map(drop),
-                "training_commands" => serde_json::from_value::<Vec<String>>(value).map(drop),
-                "feature_layout_version" => serde_json::from_value::<u32>(value).map(drop),
-                _ => Ok(()),
-            };
-            check.map_err(|e| CardError::Invalid {
+        // The error names the field at fault: its top-level key is the
+        // metadata key.
+        serde_path_to_error::deserialize(Value::Object(fields)).map_err(|e| {
+            let key = e
+                .path()
+                .iter()
+                .next()
+                .map_or_else(|| "metadata".to_owned(), |segment| segment.to_string());
+            CardError::Invalid {
                 key,
-                reason: e.to_string(),
-            })?;
-        }
-        serde_json::from_value(Value::Object(fields)).map_err(|e| CardError::Invalid {
-            key: "metadata",
-            reason: e.to_string(),
+                reason: e.into_inner().to_string(),
+            }
         })
     }
 
@@ -304,13 +297,7 @@ mod tests {
         }
         let err = ModelCard::from_metadata(&broken).unwrap_err();
         assert!(
-            matches!(
-                err,
-                CardError::Invalid {
-                    key: "training_data",
-                    ..
-                }
-            ),
+            matches!(&err, CardError::Invalid { key, .. } if key == "training_data"),
             "{err}"
         );
     }

@@ -39,7 +39,7 @@ pub fn check(
     pushes: &[(usize, f64)],
     allow: bool,
 ) -> Result<Vec<Warning>, ApiError> {
-    let domain = &model.domain;
+    let domain = &model.card.domain.domain;
     let mut violations = domain.check_tree(tree);
     violations.extend(
         pushes
