@@ -101,7 +101,6 @@ impl PartialEq<&str> for ErrorCode {
 
 #[derive(Debug, Clone)]
 pub struct ApiError {
-    pub status: StatusCode,
     /// Stable, machine-readable: clients branch on this, not on `message`.
     pub code: ErrorCode,
     /// For people: says what is wrong and, where possible, how to fix it.
@@ -112,7 +111,6 @@ pub struct ApiError {
 impl ApiError {
     pub fn new(code: ErrorCode, message: impl Into<String>) -> Self {
         Self {
-            status: code.status(),
             code,
             message: message.into(),
             details: Value::Null,
@@ -200,10 +198,8 @@ impl From<PlanError> for ApiError {
             PlanError::StartInCollision => ApiError::invalid_field("robot.start", e.to_string()),
             PlanError::NoForwardModel => ApiError::not_ready(e.to_string()),
             PlanError::Predict(p) => match p.source_as::<InferError>() {
-                Some(InferError::DeadlineExceeded | InferError::Cancelled) => {
-                    ApiError::deadline(p.to_string())
-                }
-                _ => ApiError::internal(format!("inference failed: {p}")),
+                Some(e) => e.clone().into(),
+                None => ApiError::internal(format!("inference failed: {p}")),
             },
         }
     }
@@ -214,7 +210,7 @@ impl IntoResponse for ApiError {
         let body = json!({
             "error": { "code": self.code.as_str(), "message": self.message, "details": self.details }
         });
-        (self.status, axum::Json(body)).into_response()
+        (self.code.status(), axum::Json(body)).into_response()
     }
 }
 
