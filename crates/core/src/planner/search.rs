@@ -11,8 +11,8 @@ use serde::Serialize;
 use super::predict::PredictError;
 use super::predict::{Predictor, max_node_error};
 use crate::model::domain::Margin;
+use crate::seed::standard_normal;
 use crate::sim::Push;
-use crate::sim::sampling::standard_normal;
 use crate::tree::Tree;
 
 /// The paper's pushes are 5-15 cm; the forward model was trained on them.

@@ -10,6 +10,7 @@ use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
 use super::Push;
+use crate::seed::standard_normal;
 use crate::tree::Tree;
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -55,12 +56,4 @@ impl PushDistribution {
             vector: direction * length,
         }
     }
-}
-
-/// Box–Muller; only the direction of the 3-vector matters, so one draw per
-/// coordinate keeps the sample isotropic.
-pub fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
-    let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
-    let u2: f64 = rng.random();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }

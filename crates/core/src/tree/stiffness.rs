@@ -22,13 +22,7 @@ use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 
 use super::{Branch, Tree};
-
-/// One N(0, 1) draw (Box–Muller). `tree` sits below `sim`, so it does not
-/// borrow `sim::sampling`'s.
-fn normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
-    let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * rng.random::<f64>()).cos()
-}
+use crate::seed::standard_normal;
 
 /// How a tree's stiffness is varied away from the radius formula.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -97,7 +91,7 @@ impl StiffnessVariation {
                     return 1.0;
                 }
                 let eps = if self.branch_log_sigma > 0.0 {
-                    self.branch_log_sigma * normal(rng)
+                    self.branch_log_sigma * standard_normal(rng)
                 } else {
                     0.0
                 };
