@@ -13,28 +13,37 @@ fn dependencies(package: &str) -> Vec<String> {
     dependencies_with(package, &[])
 }
 
-/// [`dependencies`] with extra `cargo tree` flags (features).
-fn dependencies_with(package: &str, flags: &[&str]) -> Vec<String> {
+/// `cargo tree --locked --target x86_64-unknown-linux-gnu` with `args`, run
+/// in the workspace; its output.
+fn cargo_tree(args: &[&str]) -> String {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let out = Command::new(cargo)
         .current_dir(ROOT)
-        .args(["tree", "--locked", "-p", package, "-e", "normal,build"])
-        .args([
-            "--prefix",
-            "none",
-            "--no-dedupe",
-            "--target",
-            "x86_64-unknown-linux-gnu",
-        ])
-        .args(flags)
+        .args(["tree", "--locked", "--target", "x86_64-unknown-linux-gnu"])
+        .args(args)
         .output()
         .expect("cargo runs");
     assert!(
         out.status.success(),
-        "cargo tree -p {package}: {}",
+        "cargo tree {args:?}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let mut crates: Vec<String> = String::from_utf8_lossy(&out.stdout)
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// [`dependencies`] with extra `cargo tree` flags (features).
+fn dependencies_with(package: &str, flags: &[&str]) -> Vec<String> {
+    let mut args = vec![
+        "-p",
+        package,
+        "-e",
+        "normal,build",
+        "--prefix",
+        "none",
+        "--no-dedupe",
+    ];
+    args.extend_from_slice(flags);
+    let mut crates: Vec<String> = cargo_tree(&args)
         .lines()
         .filter_map(|l| {
             let mut words = l.split_whitespace();
@@ -119,24 +128,7 @@ fn the_image_binary_carries_no_trainer() {
 /// nothing there may turn on `treemanip-infer`'s `tract`.
 #[test]
 fn the_readme_server_command_resolves_no_tract() {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let out = Command::new(cargo)
-        .current_dir(ROOT)
-        .args(["tree", "--locked", "-e", "normal,build,features"])
-        .args([
-            "-i",
-            "treemanip-infer",
-            "--target",
-            "x86_64-unknown-linux-gnu",
-        ])
-        .output()
-        .expect("cargo runs");
-    let tree = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let tree = cargo_tree(&["-e", "normal,build,features", "-i", "treemanip-infer"]);
     assert!(tree.contains("treemanip-infer"), "{tree}");
     assert!(!tree.contains("feature \"tract\""), "{tree}");
 }
