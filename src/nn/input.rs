@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::graph::{Batch, EDGE_DIM, FeatureStats};
+use crate::graph::{BRANCH_COLUMN, Batch, EDGE_DIM, FeatureStats};
 
 /// Normalised dense inputs of one batch (f32, row-major).
 #[derive(Debug, Clone, PartialEq)]
@@ -56,7 +56,7 @@ pub fn gnn_input(
             for j in 0..n {
                 let k = (g * n + i) * n + j;
                 let real = i != j && batch.mask[g * n + i] > 0.0 && batch.mask[g * n + j] > 0.0;
-                let branch = batch.edges[k * EDGE_DIM + 4] > 0.0;
+                let branch = batch.edges[k * EDGE_DIM + BRANCH_COLUMN] > 0.5;
                 let linked = match connectivity {
                     Connectivity::Full => true,
                     Connectivity::Branches => branch,
@@ -78,7 +78,9 @@ pub fn gnn_input(
     }
 }
 
-/// The edge-attribute groups of e_ij = [Δp, v, K_s]. A dropped group is
+/// The edge-attribute groups of e_ij = [Δp, v, b, κ]: `delta_p` is Δp,
+/// `orientation` the topology (v and the branch flag b), `stiffness` κ
+/// (the paper's K_s, in layout 2 as a log ratio). A dropped group is
 /// zeroed after normalisation, which is the same as the encoder never
 /// seeing it; the input layout stays the same for every model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -103,7 +105,8 @@ impl EdgeAttributes {
     pub fn column_mask(&self) -> [f32; EDGE_DIM] {
         let f = |b: bool| if b { 1.0 } else { 0.0 };
         let d = f(self.delta_p);
-        [d, d, d, f(self.orientation), f(self.stiffness)]
+        let v = f(self.orientation);
+        [d, d, d, v, v, f(self.stiffness)]
     }
 
     /// "dp+v+ks", "v+ks", "none", ...

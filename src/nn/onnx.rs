@@ -20,7 +20,7 @@ use tract_onnx::pb::{
 
 use super::gnn::{Connectivity, GnnWeights, Linear, Mlp};
 use super::pointnet::PointNetWeights;
-use crate::graph::{EDGE_DIM, Task};
+use crate::graph::{BRANCH_COLUMN, EDGE_DIM, Task};
 
 pub const OPSET: i64 = 17;
 
@@ -207,13 +207,13 @@ pub fn export(weights: &GnnWeights, metadata: &[(String, String)]) -> Vec<u8> {
     let edge_mask = g.op("Mul", &[&pair, &off_diagonal], vec![]);
     let mut edge_mask = g.unsqueeze(&edge_mask, &[3]);
     if weights.config.connectivity == Connectivity::Branches {
-        // Branch pairs are exactly those with K_s > 0 (column 4).
-        let from = g.constant_i64("starts", vec![4]);
-        let to = g.constant_i64("ends", vec![5]);
+        // Branch pairs are exactly those with b = 1.
+        let from = g.constant_i64("starts", vec![BRANCH_COLUMN as i64]);
+        let to = g.constant_i64("ends", vec![BRANCH_COLUMN as i64 + 1]);
         let axis = g.constant_i64("axes", vec![3]);
-        let stiffness = g.op("Slice", &[contract::EDGES, &from, &to, &axis], vec![]);
-        let zero = g.constant_f32("zero", &[], vec![0.0]);
-        let branch = g.op("Greater", &[&stiffness, &zero], vec![]);
+        let flag = g.op("Slice", &[contract::EDGES, &from, &to, &axis], vec![]);
+        let half = g.constant_f32("half", &[], vec![0.5]);
+        let branch = g.op("Greater", &[&flag, &half], vec![]);
         let branch = g.op(
             "Cast",
             &[&branch],

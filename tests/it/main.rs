@@ -11,6 +11,7 @@ mod dataset;
 mod deploy;
 mod fuzz_corpus;
 mod graph_encoding;
+mod identify;
 mod oip_v2;
 mod onnx_parity;
 mod openapi_spec;

@@ -5,6 +5,8 @@
 //! Layers, each using only those listed before it:
 //! - [`tree`]: the tree (nodes, branches, wood), Space Colonization, URDF;
 //! - [`sim`]: the quasi-static push simulator;
+//! - [`identify`]: branch stiffness from probe pushes, with the simulator as
+//!   the observation model;
 //! - [`graph`]: the graph encoding and the models' I/O contract;
 //!   [`model`]: what a model is trained for (its domain);
 //! - [`dataset`]: push episodes collected with the simulator, `.npz` files;
@@ -18,6 +20,7 @@
 
 pub mod dataset;
 pub mod graph;
+pub mod identify;
 pub mod model;
 pub mod planner;
 pub mod robot;

@@ -110,6 +110,12 @@ pub struct TrainArgs {
     /// GNN: message passing over all node pairs or only along branches.
     #[arg(long, value_enum, default_value = "full")]
     connectivity: ConnectivityArg,
+    /// GNN: start from this checkpoint directory's best weights
+    /// (fine-tuning), carried over to the current feature layout; the
+    /// architecture (--layers, --hidden, --edge-attributes,
+    /// --connectivity) and normalisation come from it.
+    #[arg(long)]
+    init_from: Option<PathBuf>,
 }
 
 pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
@@ -141,6 +147,24 @@ pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
         ConnectivityArg::Full => Connectivity::Full,
         ConnectivityArg::Branches => Connectivity::Branches,
     };
+    if let Some(dir) = &args.init_from {
+        anyhow::ensure!(arch == Arch::Gnn, "--init-from carries GNN weights over");
+        let source = treemanip::nn::train::finetune::source_state(dir)?;
+        anyhow::ensure!(
+            source.config.task == task && source.config.arch == arch,
+            "{} holds a {} {} model, not a {} {} one",
+            dir.display(),
+            source.config.task.name(),
+            source.config.arch.name(),
+            task.name(),
+            arch.name()
+        );
+        config.layers = source.config.layers;
+        config.hidden = source.config.hidden;
+        config.edge_attributes = source.config.edge_attributes;
+        config.connectivity = source.config.connectivity;
+        config.init_from = Some(dir.clone());
+    }
     config.command = std::env::args().collect::<Vec<_>>().join(" ");
     anyhow::ensure!(config.batch_size > 0, "--batch-size must be positive");
     anyhow::ensure!(config.epochs > 0, "--epochs must be positive");
@@ -259,6 +283,15 @@ fn command_line(recorded: &str) -> String {
 
 fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
     let state = read_state(dir)?;
+    anyhow::ensure!(
+        state.config.arch == Arch::PointNet
+            || state.config.feature_layout == FEATURE_LAYOUT_VERSION,
+        "{} was trained on feature layout {} and the server reads layout {}: fine-tune it with `treemanip train ... --init-from {}` and export that run",
+        dir.display(),
+        state.config.feature_layout,
+        FEATURE_LAYOUT_VERSION,
+        dir.display()
+    );
     let weights = read_best(dir)?;
     let best_epoch = state.best.map(|b| b.0);
     let best_record = state

@@ -47,13 +47,22 @@ pub struct Normalisation {
 }
 
 impl Normalisation {
-    pub fn of(examples: &Examples, config: &TrainConfig) -> Self {
+    /// The statistics a run on `examples` uses: its own, or with
+    /// `init_from`, the source run's wherever the features are shared
+    /// ([`super::finetune::normalisation`]).
+    pub fn of(examples: &Examples, config: &TrainConfig) -> anyhow::Result<Self> {
         let (features, output, position) = examples.statistics(config.task);
-        Self {
+        let fresh = Self {
             features,
             output,
             position,
-        }
+        };
+        Ok(match &config.init_from {
+            Some(dir) => {
+                super::finetune::normalisation(&super::finetune::source_state(dir)?, fresh)
+            }
+            None => fresh,
+        })
     }
 }
 
@@ -90,13 +99,33 @@ impl TrainState {
 
     /// The weights the run started from, with the configuration and
     /// statistics every later set of weights shares.
-    pub fn initial_weights(&self) -> ModelWeights {
+    pub fn initial_weights(&self) -> anyhow::Result<ModelWeights> {
         initial_weights(&self.config, &self.normalisation)
     }
 }
 
-/// The run's initial weights: deterministic in (config, statistics, seed).
-pub fn initial_weights(config: &TrainConfig, norm: &Normalisation) -> ModelWeights {
+/// The run's initial weights: deterministic in (config, statistics, seed),
+/// or with `init_from`, the source run's best weights carried over to this
+/// run's layout ([`super::finetune`]).
+pub fn initial_weights(config: &TrainConfig, norm: &Normalisation) -> anyhow::Result<ModelWeights> {
+    if let Some(dir) = &config.init_from {
+        return super::finetune::initial_weights(dir, norm);
+    }
+    let mut weights = random_weights(config, norm);
+    // A checkpoint of an older layout is read with its own edge width
+    // (to be exported refused, or carried over by `--init-from`).
+    if let ModelWeights::Gnn(w) = &mut weights {
+        let dim = super::finetune::edge_dim(config.feature_layout)?;
+        let layer = &mut w.edge_encoder.layers[0];
+        if layer.inputs != dim {
+            layer.weight = vec![0.0; layer.outputs * dim];
+            layer.inputs = dim;
+        }
+    }
+    Ok(weights)
+}
+
+fn random_weights(config: &TrainConfig, norm: &Normalisation) -> ModelWeights {
     let seed = crate::seed::derive_seed(config.seed, &[0x1417]);
     let mut weights = match config.arch {
         Arch::Gnn => ModelWeights::Gnn(GnnWeights::random(
@@ -152,9 +181,8 @@ pub fn read_state(dir: &Path) -> anyhow::Result<TrainState> {
     serde_json::from_slice(&bytes).with_context(|| format!("parsing {}", path.display()))
 }
 
-fn weights_in(dir: &Path, file: &str) -> anyhow::Result<ModelWeights> {
-    let state = read_state(dir)?;
-    let initial = state.initial_weights();
+fn weights_in(dir: &Path, state: &TrainState, file: &str) -> anyhow::Result<ModelWeights> {
+    let initial = state.initial_weights()?;
     let device = Device::flex();
     let path = dir.join(file);
     Ok(match state.config.arch {
@@ -171,13 +199,18 @@ fn weights_in(dir: &Path, file: &str) -> anyhow::Result<ModelWeights> {
 
 /// The best weights of a checkpoint directory.
 pub fn read_best(dir: &Path) -> anyhow::Result<ModelWeights> {
-    weights_in(dir, BEST_FILE)
+    weights_in(dir, &read_state(dir)?, BEST_FILE)
+}
+
+/// The best weights of a checkpoint directory whose state is already read.
+pub fn read_best_of(dir: &Path, state: &TrainState) -> anyhow::Result<ModelWeights> {
+    weights_in(dir, state, BEST_FILE)
 }
 
 /// The weights a checkpoint's model holds right now (not necessarily the
 /// best), for tests and inspection.
 pub fn current_weights(dir: &Path) -> anyhow::Result<ModelWeights> {
-    weights_in(dir, MODEL_FILE)
+    weights_in(dir, &read_state(dir)?, MODEL_FILE)
 }
 
 /// This machine's CPU model, as /proc/cpuinfo names it.

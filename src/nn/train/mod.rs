@@ -29,6 +29,7 @@
 pub mod checkpoint;
 pub mod data;
 mod device;
+pub mod finetune;
 mod memory;
 pub mod modules;
 mod objective;
@@ -120,8 +121,20 @@ pub struct TrainConfig {
     pub hidden: usize,
     pub edge_attributes: EdgeAttributes,
     pub connectivity: Connectivity,
+    /// The graph encoding the run feeds (`crate::graph::FEATURE_LAYOUT_VERSION`
+    /// when it started); checkpoints from before the field existed are layout 1.
+    #[serde(default = "layout_one")]
+    pub feature_layout: u32,
+    /// A checkpoint directory whose best weights start this run
+    /// (fine-tuning), carried over to this run's layout; absent: random.
+    #[serde(default)]
+    pub init_from: Option<PathBuf>,
     /// The command line that started the run.
     pub command: String,
+}
+
+fn layout_one() -> u32 {
+    1
 }
 
 impl TrainConfig {
@@ -147,6 +160,8 @@ impl TrainConfig {
             hidden: gnn.hidden,
             edge_attributes: gnn.edge_attributes,
             connectivity: gnn.connectivity,
+            feature_layout: crate::graph::FEATURE_LAYOUT_VERSION,
+            init_from: None,
             command: String::new(),
         }
     }
@@ -260,7 +275,7 @@ pub fn train(
     std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
     let examples = Examples::load(&config.data, &config.sizes, config.limit_per_size)?;
     let state = TrainState {
-        normalisation: Normalisation::of(&examples, &config),
+        normalisation: Normalisation::of(&examples, &config)?,
         learning_rate: config.learning_rate,
         commands: vec![config.command.clone()],
         config,
@@ -302,7 +317,7 @@ pub fn resume(
     let config = &state.config;
     let examples = Examples::load(&config.data, &config.sizes, config.limit_per_size)?;
     anyhow::ensure!(
-        Normalisation::of(&examples, config) == state.normalisation,
+        Normalisation::of(&examples, config)? == state.normalisation,
         "the data in {} is not the data this run started on (its statistics differ); regenerate it with the run's dataset command",
         config.data.display()
     );
@@ -326,7 +341,16 @@ fn run<M: Net>(
         state.cpus.push(cpu);
     }
     let device = Device::flex().autodiff();
-    let weights = state.initial_weights();
+    anyhow::ensure!(
+        state.config.arch == Arch::PointNet
+            || state.config.feature_layout == crate::graph::FEATURE_LAYOUT_VERSION,
+        "{} was trained on feature layout {}; this build encodes layout {}: start a new run from it with --init-from {}",
+        dir.display(),
+        state.config.feature_layout,
+        crate::graph::FEATURE_LAYOUT_VERSION,
+        dir.display()
+    );
+    let weights = state.initial_weights()?;
     let mut model = M::build(&weights, &device);
     let mut optimizer = AdamConfig::new()
         .with_epsilon(1e-8)

@@ -6,13 +6,24 @@
 //! attributes
 //!
 //! ```text
-//!     e_ij = [p_j − p_i (3, m), v_ij, K_s,ij (N·m/rad)]
+//!     e_ij = [p_j − p_i (3, m), v_ij, b_ij, κ_ij]
 //! ```
 //!
-//! where v_ij = +1 when i is an ancestor of j (root → leaf), −1 otherwise,
-//! and K_s,ij is the stiffness of the branch joining i and j when they are
-//! parent and child (in either direction), 0 for pairs that are not a
-//! branch. Node and global attributes depend on the task:
+//! where v_ij = +1 when i is an ancestor of j (root → leaf), −1 otherwise;
+//! b_ij = 1 when i and j are parent and child (in either direction), 0
+//! otherwise; and κ_ij = ln K_s,ij − mean over the tree's branches of
+//! ln K_s (dimensionless) for the branch joining i and j, 0 for pairs that
+//! are not a branch.
+//!
+//! Why κ and not K_s (layout 1 fed K_s in N·m/rad): a push is displacement
+//! controlled, and its steady state minimises Σ ½ K_s |θ|² under the
+//! contact constraint, so multiplying every K_s by one factor moves no
+//! node. Only stiffness *ratios* change the outcome, and κ holds exactly
+//! those: a global factor leaves every κ unchanged. The log scale makes
+//! a branch twice as stiff as its neighbour the same step wherever it is
+//! in the tree (K_s spans four decades between twigs and trunk). b carries
+//! the adjacency that a zero K_s carried in layout 1. Node and global
+//! attributes depend on the task:
 //!
 //! | task | node n_j | global g |
 //! | --- | --- | --- |
@@ -37,10 +48,18 @@ use crate::tree::Tree;
 
 /// Version of the feature layout below; stored in model metadata so a
 /// model and the encoder that feeds it can be checked against each other.
-pub const FEATURE_LAYOUT_VERSION: u32 = 1;
+///
+/// 1: edges [Δp, v, K_s]; 2: edges [Δp, v, b, κ] (scale-free stiffness).
+pub const FEATURE_LAYOUT_VERSION: u32 = 2;
 
-/// Edge attributes: Δp (3), v, K_s.
-pub const EDGE_DIM: usize = 5;
+/// Edge attributes: Δp (3), v, b, κ.
+pub const EDGE_DIM: usize = 6;
+
+/// Column of b (1 for parent–child pairs) in an edge vector.
+pub const BRANCH_COLUMN: usize = 4;
+
+/// Column of κ (log stiffness relative to the tree's mean) in an edge vector.
+pub const LOG_STIFFNESS_COLUMN: usize = 5;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -101,9 +120,9 @@ impl GraphInput {
 
     /// The same graph for the tree (and push, or target) turned by `angle`
     /// (rad) about the vertical axis z through the root. Every vector
-    /// feature turns with it (Δp; the push T; the target offsets p′ − p);
-    /// v and K_s are invariant. Gravity is off and joints are isotropic, so
+    /// feature turns with it (Δp; the push T; the target offsets p′ − p). Gravity is off and joints are isotropic, so
     /// this is an exact symmetry of the simulator: training augments with it.
+    /// v, b and κ are invariant.
     pub fn rotate_about_vertical(&mut self, angle: f64) {
         let (sin, cos) = angle.sin_cos();
         let edges = self.edges.chunks_exact_mut(EDGE_DIM);
@@ -132,21 +151,43 @@ pub fn rotate_xy(v: &mut [f32], sin: f64, cos: f64) {
     v[1] = (sin * x + cos * y) as f32;
 }
 
-/// K_s of the branch joining i and j (either may be the parent), or 0.
-fn branch_stiffness(tree: &Tree, i: usize, j: usize) -> f64 {
-    let joined = |child: usize, parent: usize| tree.parent(child) == Some(parent);
-    if joined(j, i) {
-        tree.branch(j).map_or(0.0, |b| b.stiffness)
-    } else if joined(i, j) {
-        tree.branch(i).map_or(0.0, |b| b.stiffness)
+/// The branch joining i and j (either may be the parent): its child node.
+fn joining_branch(tree: &Tree, i: usize, j: usize) -> Option<usize> {
+    if tree.parent(j) == Some(i) {
+        Some(j)
+    } else if tree.parent(i) == Some(j) {
+        Some(i)
     } else {
-        0.0
+        None
     }
+}
+
+/// κ_j = ln K_s,j − mean over branches of ln K_s, indexed by node (0 at the
+/// root). Branches with a non-positive or non-finite K_s (which requests
+/// and dataset files never carry: they are validated) count as κ = 0 and
+/// stay out of the mean.
+pub fn log_stiffness_ratios(tree: &Tree) -> Vec<f64> {
+    let logs: Vec<Option<f64>> = (0..tree.len())
+        .map(|j| {
+            tree.branch(j)
+                .map(|b| b.stiffness)
+                .filter(|k| k.is_finite() && *k > 0.0)
+                .map(f64::ln)
+        })
+        .collect();
+    let valid: Vec<f64> = logs.iter().flatten().copied().collect();
+    let mean = if valid.is_empty() {
+        0.0
+    } else {
+        valid.iter().sum::<f64>() / valid.len() as f64
+    };
+    logs.iter().map(|l| l.map_or(0.0, |l| l - mean)).collect()
 }
 
 /// The edge attributes of a tree at rest: shared by both tasks.
 pub fn edge_attributes(tree: &Tree) -> Vec<f32> {
     let n = tree.len();
+    let kappa = log_stiffness_ratios(tree);
     let mut edges = vec![0.0f32; n * n * EDGE_DIM];
     for i in 0..n {
         for j in 0..n {
@@ -159,7 +200,10 @@ pub fn edge_attributes(tree: &Tree) -> Vec<f32> {
             edges[k + 1] = d.y as f32;
             edges[k + 2] = d.z as f32;
             edges[k + 3] = tree.orientation(i, j) as f32;
-            edges[k + 4] = branch_stiffness(tree, i, j) as f32;
+            if let Some(b) = joining_branch(tree, i, j) {
+                edges[k + BRANCH_COLUMN] = 1.0;
+                edges[k + LOG_STIFFNESS_COLUMN] = kappa[b] as f32;
+            }
         }
     }
     edges

@@ -212,7 +212,7 @@ mod tests {
             tree_height: range(0.4, 2.5),
             branch_length: range(0.05, 0.7),
             branch_radius: range(0.003, 0.02),
-            stiffness: range(2.5, 1e4),
+            stiffness_log_ratio: range(-4.0, 3.0),
             push_length: range(0.025, 0.3),
             nodes: EVALUATED_NODES,
         };
@@ -221,7 +221,7 @@ mod tests {
             task: Task::Forward,
             arch: "gnn".into(),
             architecture: "gnn: 5 layers".into(),
-            feature_layout_version: 1,
+            feature_layout_version: 2,
             normalisation: serde_json::json!({"inputs": {"edge_mean": [0.0]}}),
             training_data: TrainingData {
                 directory: "data".into(),

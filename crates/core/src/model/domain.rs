@@ -2,19 +2,26 @@
 //! widened by a margin, outside which its answers are extrapolation.
 //!
 //! Recorded in each exported model's metadata (key `domain`) and checked by
-//! the server before it asks a model anything: a stiffness of 1e30 N·m/rad
-//! or a 100 m branch gets a 422 that names the quantity, the bound and the
-//! node, instead of a confident prediction of 1e23 m.
+//! the server before it asks a model anything: a branch 1000× stiffer than
+//! its neighbours or a 100 m branch gets a 422 that names the quantity, the
+//! bound and the node, instead of a confident prediction of 1e23 m.
+//!
+//! Stiffness is bounded only as a ratio: κ_j = ln K_s,j − the tree's mean
+//! ln K_s (the models' input, [`crate::graph::log_stiffness_ratios`]). A
+//! push is displacement controlled, so a global factor on every K_s moves
+//! nothing, and the models cannot see one: it is never refused.
 //!
 //! The margin ([`Margin::STANDARD`]): lengths (tree height, branch length,
-//! radius) may be 1.5× outside the trained range either way, stiffness 4×
-//! (K_s ∝ r⁴/ℓ, so 4× is a radius about 1.4× off), pushes down to half the
-//! shortest and up to twice the longest trained push. Tree size is not a
+//! radius) may be 1.5× outside the trained range either way, each branch's
+//! stiffness ratio 2× beyond the most extreme ratio trained on (κ ± ln 2),
+//! pushes down to half the shortest and up to twice the longest trained
+//! push. Tree size is not a
 //! bound: the GNN's weights do not depend on N, and the paper evaluates
 //! N = 10…30 zero-shot; outside that range a warning is given instead.
 
 use serde::{Deserialize, Serialize};
 
+use crate::graph::log_stiffness_ratios;
 use crate::tree::Tree;
 
 /// Sizes the paper evaluates on (trained on 11…19, zero-shot to 30).
@@ -45,6 +52,14 @@ impl Interval {
         }
     }
 
+    /// Widened by `by` either way (for quantities on a log scale).
+    fn widened_by(self, by: f64) -> Self {
+        Self {
+            min: self.min - by,
+            max: self.max + by,
+        }
+    }
+
     pub fn contains(&self, v: f64) -> bool {
         v >= self.min && v <= self.max
     }
@@ -59,8 +74,9 @@ pub struct Domain {
     pub branch_length: Interval,
     /// Branch radius r (m).
     pub branch_radius: Interval,
-    /// Joint stiffness K_s (N·m/rad).
-    pub stiffness: Interval,
+    /// κ = ln K_s − the tree's mean ln K_s (dimensionless): stiffness
+    /// relative to the rest of the tree.
+    pub stiffness_log_ratio: Interval,
     /// |T| (m); forward model only, the policy's pushes are its output.
     pub push_length: Interval,
     /// Tree sizes evaluated (outside: a warning, not a refusal).
@@ -71,14 +87,16 @@ pub struct Domain {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Margin {
     pub length_factor: f64,
-    pub stiffness_factor: f64,
+    /// How much stiffer or softer, relative to its tree, a branch may be
+    /// than any trained on.
+    pub stiffness_ratio_factor: f64,
     pub push_factor: f64,
 }
 
 impl Margin {
     pub const STANDARD: Margin = Margin {
         length_factor: 1.5,
-        stiffness_factor: 4.0,
+        stiffness_ratio_factor: 2.0,
         push_factor: 2.0,
     };
 }
@@ -89,7 +107,7 @@ pub struct Span {
     pub tree_height: Interval,
     pub branch_length: Interval,
     pub branch_radius: Interval,
-    pub stiffness: Interval,
+    pub stiffness_log_ratio: Interval,
     pub push_length: Interval,
 }
 
@@ -99,7 +117,7 @@ impl Default for Span {
             tree_height: Interval::EMPTY,
             branch_length: Interval::EMPTY,
             branch_radius: Interval::EMPTY,
-            stiffness: Interval::EMPTY,
+            stiffness_log_ratio: Interval::EMPTY,
             push_length: Interval::EMPTY,
         }
     }
@@ -108,10 +126,11 @@ impl Default for Span {
 impl Span {
     pub fn add_tree(&mut self, tree: &Tree) {
         self.tree_height.include(tree_height(tree));
-        for (_, b) in tree.branches_iter() {
+        let kappa = log_stiffness_ratios(tree);
+        for (j, b) in tree.branches_iter() {
             self.branch_length.include(b.length);
             self.branch_radius.include(b.radius);
-            self.stiffness.include(b.stiffness);
+            self.stiffness_log_ratio.include(kappa[j]);
         }
     }
 
@@ -126,7 +145,9 @@ impl Span {
             tree_height: self.tree_height.widened(margin.length_factor),
             branch_length: self.branch_length.widened(margin.length_factor),
             branch_radius: self.branch_radius.widened(margin.length_factor),
-            stiffness: self.stiffness.widened(margin.stiffness_factor),
+            stiffness_log_ratio: self
+                .stiffness_log_ratio
+                .widened_by(margin.stiffness_ratio_factor.ln()),
             push_length: self.push_length.widened(margin.push_factor),
             nodes,
         }
@@ -145,8 +166,8 @@ pub fn tree_height(tree: &Tree) -> f64 {
 /// One quantity outside the domain.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Violation {
-    /// `tree_height`, `branch_length`, `branch_radius`, `stiffness`,
-    /// `push_length` or `nodes`.
+    /// `tree_height`, `branch_length`, `branch_radius`,
+    /// `stiffness_log_ratio`, `push_length` or `nodes`.
     pub quantity: &'static str,
     pub value: f64,
     pub min: f64,
@@ -190,10 +211,16 @@ impl Domain {
             }
         };
         check("tree_height", self.tree_height, tree_height(tree), None);
+        let kappa = log_stiffness_ratios(tree);
         for (j, b) in tree.branches_iter() {
             check("branch_length", self.branch_length, b.length, Some(j));
             check("branch_radius", self.branch_radius, b.radius, Some(j));
-            check("stiffness", self.stiffness, b.stiffness, Some(j));
+            check(
+                "stiffness_log_ratio",
+                self.stiffness_log_ratio,
+                kappa[j],
+                Some(j),
+            );
         }
         let n = tree.len();
         if n < self.nodes.0 || n > self.nodes.1 {

@@ -11,8 +11,10 @@
 
 pub mod domain;
 pub mod error;
+pub mod identify;
 pub mod json;
 pub mod metrics;
+pub mod observations;
 pub mod plan;
 pub mod predict;
 pub mod probe;
@@ -64,6 +66,8 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/policy", post(predict::policy))
         .route("/v1/plan", post(plan::plan))
         .route("/v1/simulate", post(simulate::simulate))
+        .route("/v1/identify", post(identify::identify))
+        .route("/v1/identify/probes", post(identify::propose))
         .route("/v1/trees/urdf", post(scene::tree_from_urdf))
         .route("/v1/trees/example", get(scene::example_tree))
         .route("/v1/robot/link-poses", post(scene::link_poses))

@@ -12,10 +12,12 @@ use super::AppState;
 use super::domain::{self, Warning};
 use super::error::ApiError;
 use super::json::ApiJson;
+use super::observations::{IdentifyResponse, ProbeJson, identify_config, probes};
 use super::state::ModelInfo;
 use super::tree_json::TreeJson;
 use super::validate::{MAX_DISTANCE, joints, near_point, targets, vector3};
 use treemanip_core::graph::Task;
+use treemanip_core::identify::{Noise, identify};
 use treemanip_core::planner::base::{BasePose, BaseRegion};
 use treemanip_core::planner::{self, Attempt, Predictor, Query, Stance, Strategy};
 use treemanip_core::robot::collision::Obstacle;
@@ -90,6 +92,15 @@ pub struct PlanRequest {
     /// See [`super::predict::ForwardRequest::allow_out_of_domain`].
     #[serde(default)]
     pub allow_out_of_domain: bool,
+    /// Probe pushes already observed on this tree (as `/v1/identify`
+    /// takes them, e.g. the outcome of the last push while it was held):
+    /// the planner identifies the stiffness first and plans with the
+    /// estimate, returned as `identification`.
+    #[serde(default)]
+    pub observations: Vec<ProbeJson>,
+    /// Noise of `observations` (defaults: 3 mm, 5 % of force).
+    #[serde(default)]
+    pub observation_noise: Option<Noise>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -118,6 +129,9 @@ pub struct PlanResponse {
     pub model: ModelInfo,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<Warning>,
+    /// With `observations`: the stiffness the plan was made with.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub identification: Option<IdentifyResponse>,
 }
 
 fn invalid(field: &str, message: impl Into<String>) -> ApiError {
@@ -275,16 +289,26 @@ pub async fn plan(
         "max_evaluations",
     )?);
     query.seed = request.seed.unwrap_or(1);
+    let config = identify_config(request.observation_noise, None, "observation_")?;
+    let observations = probes(&query.tree, &request.observations, &config, "observations")?;
     let info = ModelInfo::of(&policy, &state);
     let planner = state.planner.clone();
     let response = state
         .run_blocking("/v1/plan", move || {
+            let identification = (!observations.is_empty()).then(|| {
+                let id = identify(&query.tree, &observations, &config);
+                query.tree = id.tree.clone();
+                IdentifyResponse::from(&id)
+            });
             let plan = planner.plan(
                 &query,
                 &*policy,
                 forward.as_deref().map(|m| m as &dyn Predictor),
             )?;
-            Ok(response(plan, info, warnings))
+            Ok(PlanResponse {
+                identification,
+                ..response(plan, info, warnings)
+            })
         })
         .await?;
     Ok(axum::Json(response))
@@ -324,5 +348,6 @@ fn response(plan: planner::Plan, model: ModelInfo, warnings: Vec<Warning>) -> Pl
         total_ms: plan.total_ms,
         model,
         warnings,
+        identification: None,
     }
 }

@@ -1,0 +1,164 @@
+//! Probe pushes as clients send them (`/v1/identify`, `/v1/identify/probes`
+//! and `/v1/plan`'s `observations`), checked and turned into
+//! [`treemanip_core::identify::Probe`]s. Every error names the probe and
+//! the field (`details.field` = `probes[k].observed_positions`, ...).
+
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use treemanip_core::identify::{
+    FitReport, Identification, IdentifyConfig, MAX_PROBES, Noise, Prior, Probe, Rejected, Scale,
+    Status, validate_probes,
+};
+use treemanip_core::sim::{ContactModel, Push};
+use treemanip_core::tree::Tree;
+
+use super::error::ApiError;
+use super::tree_json::TreeJson;
+use super::validate::vector3;
+
+/// One observed probe push.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeJson {
+    #[serde(deserialize_with = "super::json::integer::usize")]
+    pub contact_node: usize,
+    /// Gripper displacement T (m).
+    pub push: Vec<f64>,
+    #[serde(default)]
+    pub contact: ContactModel,
+    /// Per node, where it was seen while the push was held (m), or null.
+    pub observed_positions: Vec<Option<Vec<f64>>>,
+    /// The force the gripper applied to the branch (N), as `/v1/simulate`
+    /// reports `contact_force`; a wrist sensor reads the opposite sign.
+    #[serde(default)]
+    pub contact_force: Option<Vec<f64>>,
+}
+
+fn field_error(field: String, message: impl Into<String>) -> ApiError {
+    ApiError::invalid_argument(message).with_details(json!({ "field": field }))
+}
+
+/// The identification settings, checked: noise and spreads positive and
+/// finite, within what a sensor and a prior can mean.
+pub fn identify_config(
+    noise: Option<Noise>,
+    prior: Option<Prior>,
+    field: &str,
+) -> Result<IdentifyConfig, ApiError> {
+    let mut config = IdentifyConfig::default();
+    if let Some(noise) = noise {
+        let ok = |v: f64, max: f64| v.is_finite() && v > 0.0 && v <= max;
+        if !ok(noise.position, 0.1) {
+            return Err(field_error(
+                format!("{field}noise.position"),
+                "`noise.position` must be in (0, 0.1] m",
+            ));
+        }
+        if !ok(noise.force, 1.0) {
+            return Err(field_error(
+                format!("{field}noise.force"),
+                "`noise.force` (relative) must be in (0, 1]",
+            ));
+        }
+        config.noise = noise;
+    }
+    if let Some(prior) = prior {
+        for (name, v) in [
+            ("branch_log_sigma", prior.branch_log_sigma),
+            ("global_log_sigma", prior.global_log_sigma),
+        ] {
+            if !(v.is_finite() && v > 0.0 && v <= 5.0) {
+                return Err(field_error(
+                    format!("{field}prior.{name}"),
+                    format!("`prior.{name}` must be in (0, 5]"),
+                ));
+            }
+        }
+        config.prior = prior;
+    }
+    Ok(config)
+}
+
+/// Probes checked against `tree` (`field` prefixes the field names, e.g.
+/// `observations` in `/v1/plan`).
+pub fn probes(
+    tree: &Tree,
+    list: &[ProbeJson],
+    config: &IdentifyConfig,
+    field: &str,
+) -> Result<Vec<Probe>, ApiError> {
+    if list.len() > MAX_PROBES {
+        return Err(ApiError::too_large(format!(
+            "{} probes; at most {MAX_PROBES} are accepted",
+            list.len()
+        ))
+        .with_details(json!({ "field": field })));
+    }
+    let mut out = Vec::with_capacity(list.len());
+    for (k, p) in list.iter().enumerate() {
+        let name = |f: &str| format!("{field}[{k}].{f}");
+        let push = vector3(&p.push, &name("push"))?;
+        let mut observed = Vec::with_capacity(p.observed_positions.len());
+        for (j, o) in p.observed_positions.iter().enumerate() {
+            observed.push(match o {
+                None => None,
+                Some(v) => {
+                    Some(vector3(v, &format!("{}[{j}]", name("observed_positions")))?.into())
+                }
+            });
+        }
+        let contact_force = p
+            .contact_force
+            .as_deref()
+            .map(|f| vector3(f, &name("contact_force")))
+            .transpose()?;
+        out.push(Probe {
+            push: Push {
+                node: p.contact_node,
+                vector: push,
+            },
+            contact: p.contact,
+            observed,
+            contact_force,
+        });
+    }
+    validate_probes(tree, &out, &config.noise).map_err(|e| {
+        ApiError::invalid_argument(e.to_string()).with_details(json!({
+            "field": format!("{field}[{}].{}", e.probe, e.field),
+            "probe": e.probe,
+        }))
+    })?;
+    Ok(out)
+}
+
+/// The estimate, per node (null at the root).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct IdentifyResponse {
+    /// Estimated K_s (N·m/rad).
+    pub stiffness: Vec<Option<f64>>,
+    /// 90 % interval of each K_s (N·m/rad).
+    pub interval: Vec<Option<[f64; 2]>>,
+    pub status: Vec<Option<Status>>,
+    /// `absolute` when a contact force fixed the level; `relative`: the
+    /// estimate keeps the prior's level (its mean ln K_s).
+    pub scale: Scale,
+    /// The request's tree with the estimate as its `stiffness`, ready for
+    /// the other endpoints.
+    pub tree: TreeJson,
+    pub fit: FitReport,
+    pub rejected: Vec<Rejected>,
+}
+
+impl From<&Identification> for IdentifyResponse {
+    fn from(id: &Identification) -> Self {
+        Self {
+            stiffness: id.stiffness.clone(),
+            interval: id.interval.iter().map(|i| i.map(|(a, b)| [a, b])).collect(),
+            status: id.status.clone(),
+            scale: id.scale,
+            tree: TreeJson::from_tree(&id.tree),
+            fit: id.fit.clone(),
+            rejected: id.rejected.clone(),
+        }
+    }
+}
