@@ -1,7 +1,9 @@
 //! Evaluations the way the paper reports them, with tables and figures.
 
 pub mod ablations;
+pub mod identify;
 pub mod learned;
 pub mod plan;
 pub mod plots;
 pub mod ranks;
+pub mod stiffness;

@@ -250,3 +250,79 @@ pub fn affordance_by_rank_svg(
     root.present()?;
     Ok(())
 }
+
+/// Identification: held-out error (mm) against the number of probes,
+/// chosen and random, with the radius formula's error as a dashed line.
+pub fn identify_probes_svg(
+    results: &[crate::eval::identify::SettingResult],
+    path: &Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let base = |r: &&crate::eval::identify::SettingResult| {
+        r.setting.sigma == 0.3 && r.setting.noise_mm == 3.0 && !r.setting.force
+    };
+    let rows: Vec<_> = results.iter().filter(base).collect();
+    let top = rows
+        .iter()
+        .map(|r| r.heldout_formula.max(r.heldout_estimate) * 1e3)
+        .fold(1.0, f64::max)
+        * 1.15;
+    let root = SVGBackend::new(path, (760, 460)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "Held-out pushes simulated with the identified stiffness (σ = 0.3, 3 mm)",
+            ("sans-serif", 17),
+        )
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(2.0..11.0, 0.0..top)?;
+    chart
+        .configure_mesh()
+        .x_desc("probe pushes")
+        .y_desc("mean max node error (mm)")
+        .disable_x_mesh()
+        .draw()?;
+    for (chosen, label, color) in [
+        (true, "chosen probes", RGBColor(58, 110, 165)),
+        (false, "random probes (paper-style)", RGBColor(214, 96, 77)),
+    ] {
+        let mut points: Vec<(f64, f64)> = rows
+            .iter()
+            .filter(|r| r.setting.chosen == chosen)
+            .map(|r| (r.setting.probes as f64, r.heldout_estimate * 1e3))
+            .collect();
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        chart
+            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))?
+            .label(label)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+        chart.draw_series(
+            points
+                .iter()
+                .map(|&(x, y)| Circle::new((x, y), 3, color.filled())),
+        )?;
+    }
+    let formula =
+        rows.iter().map(|r| r.heldout_formula * 1e3).sum::<f64>() / rows.len().max(1) as f64;
+    let grey = RGBColor(120, 120, 120);
+    chart
+        .draw_series(DashedLineSeries::new(
+            vec![(2.0, formula), (11.0, formula)],
+            6,
+            4,
+            grey.stroke_width(2),
+        ))?
+        .label("radius formula")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], grey.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}

@@ -3,7 +3,10 @@
 
 use nalgebra::{Point3, Vector3};
 use treemanip::graph::stats::StatsBuilder;
-use treemanip::graph::{EDGE_DIM, EncodeError, Task, batch, encode_forward, encode_policy};
+use treemanip::graph::{
+    BRANCH_COLUMN, EDGE_DIM, EncodeError, LOG_STIFFNESS_COLUMN, Task, batch, encode_forward,
+    encode_policy,
+};
 use treemanip::tree::{Tree, Wood};
 
 /// 0 → 1 → 2, and 1 → 3: a trunk with a fork at node 1.
@@ -60,15 +63,37 @@ fn forward_encoding_has_the_papers_attributes() {
     assert_eq!(v(2, 1), -1.0);
     assert_eq!(v(2, 3), -1.0, "siblings");
     assert_eq!(v(3, 0), -1.0);
-    // K_s: the branch stiffness between parent and child, both directions; 0 otherwise.
-    let k = |i, j| g.edge(i, j)[4];
+    // b and κ: the branch flag and ln K_s − the tree's mean ln K_s, between
+    // parent and child in both directions; 0 otherwise.
+    let (b, kappa) = (
+        |i, j| g.edge(i, j)[BRANCH_COLUMN],
+        |i, j| g.edge(i, j)[LOG_STIFFNESS_COLUMN],
+    );
+    let ln_k = |c: usize| tree.branch(c).unwrap().stiffness.ln();
+    let mean = (ln_k(1) + ln_k(2) + ln_k(3)) / 3.0;
     for (parent, child) in [(0, 1), (1, 2), (1, 3)] {
-        let stiffness = tree.branch(child).unwrap().stiffness as f32;
-        assert_eq!(k(parent, child), stiffness);
-        assert_eq!(k(child, parent), stiffness);
+        let expected = (ln_k(child) - mean) as f32;
+        for (i, j) in [(parent, child), (child, parent)] {
+            assert_eq!(b(i, j), 1.0);
+            assert!((kappa(i, j) - expected).abs() < 1e-6, "κ of {i}→{j}");
+        }
     }
     for (i, j) in [(0, 2), (0, 3), (2, 3), (3, 2), (2, 0)] {
-        assert_eq!(k(i, j), 0.0, "{i}→{j} is not a branch");
+        assert_eq!(
+            (b(i, j), kappa(i, j)),
+            (0.0, 0.0),
+            "{i}→{j} is not a branch"
+        );
+    }
+    // A global factor on every K_s leaves the encoding exactly as it was.
+    let k: Vec<f64> = tree
+        .branches()
+        .iter()
+        .map(|b| b.map_or(0.0, |b| b.stiffness * 7.3))
+        .collect();
+    let scaled = encode_forward(&treemanip::identify::with_stiffness(&tree, &k), 1, &push).unwrap();
+    for (x, y) in scaled.edges.iter().zip(&g.edges) {
+        assert!((x - y).abs() < 1e-6);
     }
 }
 
@@ -179,11 +204,8 @@ fn statistics_cover_real_entries_only() {
     assert_eq!(stats.global_std, vec![1.0, 1.0, 1.0]);
     // v over the 12 real edges of each graph: 5 ancestor pairs (+1), 7 others (−1).
     assert!((stats.edge_mean[3] - (5.0 - 7.0) / 12.0).abs() < 1e-12);
-    // K_s: 6 of the 12 directed edges are branches.
-    let ks: Vec<f64> = [1, 2, 3]
-        .iter()
-        .map(|&c| tree.branch(c).unwrap().stiffness as f32 as f64)
-        .collect();
-    let expected = 2.0 * ks.iter().sum::<f64>() / 12.0;
-    assert!((stats.edge_mean[4] - expected).abs() < 1e-6 * expected);
+    // b: 6 of the 12 directed edges are branches. κ sums to zero over a
+    // tree's branches, so its mean over edges is 0.
+    assert!((stats.edge_mean[BRANCH_COLUMN] - 0.5).abs() < 1e-12);
+    assert!(stats.edge_mean[LOG_STIFFNESS_COLUMN].abs() < 1e-6);
 }

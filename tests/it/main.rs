@@ -26,6 +26,7 @@ mod schemathesis;
 mod server_adversarial;
 mod server_basics;
 mod server_faults;
+mod server_identify;
 mod server_models;
 mod sim_convergence;
 mod sim_loads;

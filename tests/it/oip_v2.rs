@@ -119,7 +119,7 @@ fn tritonclient_sees_the_models_and_gets_the_same_answers() {
     assert_eq!(names(&seen["policy"], "outputs"), ["action", "affordance"]);
     assert_eq!(
         seen["forward"]["inputs"][1]["shape"],
-        json!([-1, -1, -1, 5])
+        json!([-1, -1, -1, 6])
     );
     // The same answer as the domain API.
     let (status, answer) = server.json(

@@ -138,7 +138,7 @@ fn out_of_domain_trees_are_refused_unless_allowed() {
             error["details"]["quantity"].as_str(),
             error["details"]["node"].as_u64()
         ),
-        (Some("stiffness"), Some(1)),
+        (Some("stiffness_log_ratio"), Some(1)),
         "{error}"
     );
     assert!(error["details"]["max"].as_f64().unwrap() < 1e30);
@@ -193,7 +193,7 @@ fn out_of_domain_trees_are_refused_unless_allowed() {
     let warnings = answer["warnings"].as_array().unwrap();
     assert!(
         warnings.iter().any(|w| w["code"] == "out_of_domain"
-            && w["details"]["quantity"] == "stiffness"
+            && w["details"]["quantity"] == "stiffness_log_ratio"
             && w["details"]["node"] == 1),
         "{answer}"
     );

@@ -153,7 +153,7 @@ fn forward_answers_match_the_library_and_batch_many_actions() {
     }
     let first = &models["models"][0]["metadata"];
     // The typed model card: numbers as numbers, documents as JSON.
-    assert_eq!(first["feature_layout_version"], 1);
+    assert_eq!(first["feature_layout_version"], 2);
     assert_eq!(first["seed"], 0);
     assert!(first["normalisation"]["inputs"]["edge_mean"].is_array());
     assert!(first["training_data"]["sizes"].is_array());

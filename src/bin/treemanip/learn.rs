@@ -112,8 +112,9 @@ pub struct TrainArgs {
     connectivity: ConnectivityArg,
     /// GNN: start from this checkpoint directory's best weights
     /// (fine-tuning), carried over to the current feature layout; the
-    /// architecture (--layers, --hidden, --edge-attributes,
-    /// --connectivity) and normalisation come from it.
+    /// architecture (--layers, --hidden, --connectivity) and normalisation
+    /// come from it, --edge-attributes still applies (an ablation may drop
+    /// a group the source used).
     #[arg(long)]
     init_from: Option<PathBuf>,
 }
@@ -161,7 +162,6 @@ pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
         );
         config.layers = source.config.layers;
         config.hidden = source.config.hidden;
-        config.edge_attributes = source.config.edge_attributes;
         config.connectivity = source.config.connectivity;
         config.init_from = Some(dir.clone());
     }

@@ -5,6 +5,9 @@
 mod ablations;
 mod args;
 mod dataset;
+mod identify;
+#[cfg(feature = "train")]
+mod identify_eval;
 #[cfg(feature = "train")]
 mod learn;
 #[cfg(feature = "train")]
@@ -57,6 +60,9 @@ enum Command {
     /// Evaluate components the way the paper does.
     #[command(subcommand)]
     Eval(EvalCommand),
+    /// Identify a tree's branch stiffness from observed probe pushes (as
+    /// `POST /v1/identify` does).
+    Identify(identify::IdentifyArgs),
     /// Run the HTTP service (the same as `treemanip-server`; the container
     /// image's entry point).
     Serve(treemanip::api::server::ServeArgs),
@@ -81,6 +87,13 @@ enum EvalCommand {
     /// of the forward GNN trained under one budget and scored on the test
     /// split (resumable across sessions).
     Ablations(ablations::EvalAblationsArgs),
+    /// Stiffness identification on test trees with hidden perturbed
+    /// stiffness: accuracy, interval coverage, held-out pushes, chosen
+    /// against random probes.
+    Identify(identify_eval::EvalIdentifyArgs),
+    /// The forward model on perturbed-stiffness test trees, given the true
+    /// and the radius formula's stiffness, and under a global factor.
+    Stiffness(identify_eval::EvalStiffnessArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -97,6 +110,11 @@ fn main() -> std::process::ExitCode {
         #[cfg(feature = "train")]
         Command::Plan(args) => plan::plan(args),
         Command::Serve(args) => treemanip::api::server::run(args),
+        Command::Identify(args) => identify::identify_cmd(args),
+        #[cfg(feature = "train")]
+        Command::Eval(EvalCommand::Identify(args)) => identify_eval::eval_identify(args),
+        #[cfg(feature = "train")]
+        Command::Eval(EvalCommand::Stiffness(args)) => identify_eval::eval_stiffness(args),
         #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
         #[cfg(feature = "train")]
