@@ -11,7 +11,8 @@
 //!
 //! Scores per setting:
 //! - **ratio error**: |ln K̂_b − ln K_b − c| over `identified` branches, c
-//!   the mean of ln K̂ − ln K over them (the level positions cannot see);
+//!   the mean of ln K̂ − ln K over the probed (identified or weak) branches
+//!   (the level positions cannot see);
 //!   beside it the radius formula's on the same branches, with its own c;
 //! - **level error** (with force): |ln K̂_b − ln K_b| on identified branches;
 //! - **coverage**: how often the 90 % interval holds the truth, over the

@@ -1,6 +1,7 @@
 //! Evaluations the way the paper reports them, with tables and figures.
 
 pub mod ablations;
+pub mod closed_loop;
 pub mod identify;
 pub mod learned;
 pub mod plan;

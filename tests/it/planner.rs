@@ -123,6 +123,9 @@ fn every_strategy_and_stance_returns_valid_plans_that_help() {
     let planner = Planner::default();
     let mut planned = 0;
     let mut helped = 0;
+    // The paper's Algorithm 1 executes the policy's push unchecked; the
+    // searched strategies never execute a push predicted not to help.
+    let (mut paper_planned, mut paper_helped) = (0, 0);
     for (n, seed) in [(10usize, 3u64), (14, 5), (12, 11)] {
         let (tree, targets) = episode(n, seed);
         for strategy in [Strategy::Paper, Strategy::Model, Strategy::Physics] {
@@ -132,7 +135,12 @@ fn every_strategy_and_stance_returns_valid_plans_that_help() {
                 check_plan(&plan, &q);
                 assert_eq!(plan.strategy, strategy);
                 if let Some(p) = &plan.plan {
-                    planned += 1;
+                    let paper = strategy == Strategy::Paper;
+                    if paper {
+                        paper_planned += 1;
+                    } else {
+                        planned += 1;
+                    }
                     let push = Push {
                         node: p.node,
                         vector: p.push,
@@ -141,7 +149,11 @@ fn every_strategy_and_stance_returns_valid_plans_that_help() {
                         .map(|o| max_node_error(&o.final_positions, &targets))
                         .unwrap_or(plan.no_action_error);
                     if after < plan.no_action_error {
-                        helped += 1;
+                        if paper {
+                            paper_helped += 1;
+                        } else {
+                            helped += 1;
+                        }
                     }
                     if strategy != Strategy::Paper {
                         let predicted = plan.predicted_error.expect("searched plans predict");
@@ -153,8 +165,13 @@ fn every_strategy_and_stance_returns_valid_plans_that_help() {
             }
         }
     }
-    // 18 plans asked for: most find a push, and most of those help.
-    assert!(planned >= 12, "only {planned} of 18 planned");
+    // 12 searched plans asked for: most find a push, and most of those
+    // help; the paper's pick helps in at least half of its plans.
+    assert!(planned >= 8, "only {planned} of 12 searched plans planned");
+    assert!(
+        paper_helped * 2 >= paper_planned && paper_planned >= 4,
+        "paper: {paper_helped} of {paper_planned} plans helped"
+    );
     assert!(
         helped * 10 >= planned * 8,
         "{helped} of {planned} plans helped"
@@ -221,13 +238,20 @@ fn obstacles_are_respected_and_named() {
     };
     let with =
         |post: &Obstacle| TreeObstacles::new(&tree).with_obstacles(std::slice::from_ref(post));
-    let (k, post) = (p.push_start_index / 2..p.push_start_index)
+    // Away from the start and from the pre-contact pose with a margin, so
+    // that the stake blocks the way and not its ends.
+    let contact = &p.trajectory[p.push_start_index].q;
+    let (k, post) = (p.push_start_index / 4..p.push_start_index)
         .map(|k| (k, post_at(k)))
         .find(|(_, post)| {
-            let hit = arm.check_with_margin(&plan.start, &with(post), &Allowed::default(), 0.02);
-            !matches!(hit, Some(Hit::Obstacle { .. }))
+            [(&plan.start, 0.02), (contact, 0.08)]
+                .iter()
+                .all(|(q, margin)| {
+                    let hit = arm.check_with_margin(q, &with(post), &Allowed::default(), *margin);
+                    !matches!(hit, Some(Hit::Obstacle { .. }))
+                })
         })
-        .expect("some place along the approach is away from the start");
+        .expect("some place along the approach is away from the start and the contact");
     assert!(
         matches!(
             arm.check(&p.trajectory[k].q, &with(&post), &Allowed::default()),
@@ -237,7 +261,11 @@ fn obstacles_are_respected_and_named() {
     );
     q.obstacles = vec![post.clone()];
     let around = planner.plan(&q, policy, Some(forward)).unwrap();
-    assert!(around.plan.is_some(), "plans around the stake");
+    assert!(
+        around.plan.is_some(),
+        "plans around the stake: {:?}",
+        around.attempts
+    );
     check_plan(&around, &q);
     // A wall over the whole workspace makes the start collide, by name.
     let wall = Obstacle::Box {

@@ -27,6 +27,12 @@ pub struct EvalIdentifyArgs {
     out: PathBuf,
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Models for the closed-loop study (`policy_gnn.onnx`, `forward_gnn.onnx`).
+    #[arg(long, default_value = "models")]
+    models: PathBuf,
+    /// Trees per size of the closed-loop study (0: skip it).
+    #[arg(long, default_value_t = 4)]
+    closed_loop_trees_per_size: usize,
 }
 
 /// The first `count` trees of each test size file.
@@ -57,8 +63,40 @@ pub fn eval_identify(args: EvalIdentifyArgs) -> anyhow::Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let table = to_markdown(&results);
+    let mut table = to_markdown(&results);
     println!("{table}");
+    if args.closed_loop_trees_per_size > 0 {
+        let set = crate::plan::load_models(&args.models)?;
+        let (policy, forward) = (
+            set.get("policy_gnn").expect("checked"),
+            set.get("forward_gnn").expect("checked"),
+        );
+        let planner = treemanip::planner::Planner::default();
+        let loop_trees = test_trees(&args.data, &args.sizes.0, args.closed_loop_trees_per_size)?;
+        table += "\n## Closed loop: `/v1/plan` with the first push's observation\n\nPhysics strategy, the evaluation's base region; the target is a random paper-style push of the true tree; the second plan identifies the stiffness from the first push's held positions (3 mm noise) and plans again from rest (`treemanip::eval::closed_loop`).\n\n";
+        for sigma in [0.3, 0.5] {
+            let bar = progress::bar(loop_trees.len() as u64, "trees");
+            bar.set_message(format!("closed loop σ={sigma}"));
+            let outcomes = treemanip::eval::closed_loop::run_study(
+                &planner,
+                policy,
+                forward,
+                &loop_trees,
+                sigma,
+                args.seed,
+                || bar.inc(1),
+            );
+            bar.finish_and_clear();
+            if std::env::var_os("TREEMANIP_DEBUG_LOOP").is_some() {
+                for o in &outcomes {
+                    eprintln!("{o:?}");
+                }
+            }
+            let t = treemanip::eval::closed_loop::to_markdown(sigma, &outcomes);
+            println!("{t}");
+            table += &t;
+        }
+    }
     std::fs::create_dir_all(&args.out)?;
     let md = format!(
         "# Stiffness identification (`treemanip eval identify`)\n\n{} test-split trees (sizes {:?}, {} each, from `{}`), hidden stiffness K = K_formula·e^ε (every second tree also × a global factor log-uniform in [1/4, 4]); slot contact; seed {}. Regenerate: `treemanip eval identify --data DIR --seed {}` with DIR from `treemanip dataset collect --out DIR --seed 7`.\n\nRatio errors are |ln K̂/K| after removing the common level (mean over the identified branches), on `identified` branches; level errors (with force) are absolute. Coverage: the 90 % intervals of probed branches. Held-out: 5 random paper-style pushes per tree simulated with the estimate and with the radius formula, mean of the largest node error.\n\n{table}",

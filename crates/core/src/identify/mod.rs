@@ -116,7 +116,7 @@ pub struct IdentifyConfig {
     pub prior: Prior,
     /// A branch is `identified` when the posterior σ of its ln K_s
     /// (relative to the tree's level, or absolute with a force) is at most
-    /// this: K_s known to about ±10 % at one σ.
+    /// this: K_s known to about ±15 % at one σ.
     pub identified_log_sigma: f64,
     /// Levenberg–Marquardt iterations at most.
     pub max_iterations: usize,
@@ -127,7 +127,7 @@ impl Default for IdentifyConfig {
         Self {
             noise: Noise::default(),
             prior: Prior::default(),
-            identified_log_sigma: 0.1,
+            identified_log_sigma: 0.15,
             max_iterations: 30,
         }
     }

@@ -61,7 +61,10 @@ pub struct ProbesRequest {
     #[serde(default)]
     pub probes: Vec<ProbeJson>,
     /// How many probes to propose (1–20, default 5).
-    #[serde(default = "default_count")]
+    #[serde(
+        default = "default_count",
+        deserialize_with = "super::json::integer::usize"
+    )]
     pub count: usize,
     /// Length of each proposed push (m, default 0.08).
     #[serde(default = "default_push_length")]
