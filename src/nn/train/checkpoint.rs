@@ -109,7 +109,7 @@ impl TrainState {
 /// run's layout ([`super::finetune`]).
 pub fn initial_weights(config: &TrainConfig, norm: &Normalisation) -> anyhow::Result<ModelWeights> {
     if let Some(dir) = &config.init_from {
-        return super::finetune::initial_weights(dir, norm);
+        return super::finetune::initial_weights(dir, config, norm);
     }
     let mut weights = random_weights(config, norm);
     // A checkpoint of an older layout is read with its own edge width

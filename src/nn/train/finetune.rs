@@ -80,8 +80,13 @@ pub fn normalisation(source: &TrainState, fresh: Normalisation) -> Normalisation
     out
 }
 
-/// The source's best weights, adapted to this run's layout and statistics.
-pub fn initial_weights(dir: &Path, norm: &Normalisation) -> anyhow::Result<ModelWeights> {
+/// The source's best weights, adapted to this run's layout, statistics and
+/// edge attributes (an ablation may drop a group the source used).
+pub fn initial_weights(
+    dir: &Path,
+    config: &super::TrainConfig,
+    norm: &Normalisation,
+) -> anyhow::Result<ModelWeights> {
     let source = source_state(dir)?;
     let weights = read_best_of(dir, &source)?;
     let ModelWeights::Gnn(mut w) = weights else {
@@ -94,6 +99,7 @@ pub fn initial_weights(dir: &Path, norm: &Normalisation) -> anyhow::Result<Model
         widen_edge_encoder(&mut w, &source.normalisation, norm);
     }
     w.stats = norm.features.clone();
+    w.config.edge_attributes = config.edge_attributes;
     Ok(ModelWeights::Gnn(w))
 }
 
