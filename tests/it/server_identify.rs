@@ -238,3 +238,46 @@ fn plan_with_observations_identifies_first() {
         "observations[0].contact_node"
     );
 }
+
+/// A global factor on every K_s is physics-invariant: the served forward
+/// model neither refuses it nor moves its prediction.
+#[test]
+fn a_global_stiffness_factor_is_neither_refused_nor_seen() {
+    let server = Server::start(&["--models-dir", MODELS]);
+    let (nominal, _) = trees();
+    let mut answers = Vec::new();
+    for factor in [1.0, 1000.0, 1e-3] {
+        let mut tree = tree_value(&nominal);
+        let k: Vec<Value> = nominal
+            .branches()
+            .iter()
+            .map(|b| b.map_or(Value::Null, |b| json!(b.stiffness * factor)))
+            .collect();
+        tree["stiffness"] = json!(k);
+        let body = json!({"tree": tree, "contact_node": 5, "push": [0.0, 0.06, 0.0]});
+        let (status, answer) = server.json("POST", "/v1/forward", &body);
+        assert_eq!(status, 200, "factor {factor}: {answer}");
+        answers.push(answer["displacements"].clone());
+    }
+    fn flat(v: &Value, out: &mut Vec<f64>) {
+        match v {
+            Value::Array(items) => items.iter().for_each(|i| flat(i, out)),
+            Value::Number(x) => out.push(x.as_f64().unwrap()),
+            _ => {}
+        }
+    }
+    let values = |v: &Value| {
+        let mut out = Vec::new();
+        flat(v, &mut out);
+        out
+    };
+    let first = values(&answers[0]);
+    assert!(first.len() >= 3 * nominal.len());
+    for other in &answers[1..] {
+        let other = values(other);
+        assert_eq!(first.len(), other.len());
+        for (p, q) in first.iter().zip(&other) {
+            assert!((p - q).abs() < 1e-6, "{p} vs {q}");
+        }
+    }
+}

@@ -403,3 +403,42 @@ fn edge_list_steps_equal_the_dense_step() {
         }
     }
 }
+
+/// `--init-from`: the new run starts from the source's best weights, with
+/// the source's normalisation where the features are shared, and its own
+/// edge attributes (an ablation that drops κ must not see it).
+#[test]
+fn a_run_started_from_another_keeps_its_weights_and_takes_its_own_attributes() {
+    let tmp = crate::common::temp_dir("train-init-from");
+    tiny_dataset(&tmp);
+    let source = tmp.join("source");
+    train(
+        tiny_config(Task::Forward, Arch::Gnn, &tmp, 2),
+        &source,
+        None,
+        &mut |_| {},
+    )
+    .unwrap();
+    let best = treemanip::nn::train::read_best(&source).unwrap();
+    let mut config = tiny_config(Task::Forward, Arch::Gnn, &tmp, 1);
+    config.init_from = Some(source.clone());
+    config.edge_attributes = "dp+v".parse().unwrap();
+    let examples = treemanip::nn::train::data::Examples::load(&tmp, &config.sizes, None).unwrap();
+    let norm = treemanip::nn::train::Normalisation::of(&examples, &config).unwrap();
+    let state = read_state(&source).unwrap();
+    assert_eq!(
+        norm, state.normalisation,
+        "same layout: the source's statistics"
+    );
+    let start = treemanip::nn::train::checkpoint::initial_weights(&config, &norm).unwrap();
+    let (ModelWeights::Gnn(start), ModelWeights::Gnn(best)) = (start, best) else {
+        panic!("GNN weights expected")
+    };
+    assert_eq!(start.edge_encoder, best.edge_encoder);
+    assert_eq!(start.blocks, best.blocks);
+    assert!(
+        !start.config.edge_attributes.stiffness,
+        "the run's own attributes"
+    );
+    assert!(best.config.edge_attributes.stiffness);
+}
