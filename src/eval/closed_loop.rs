@@ -18,6 +18,7 @@ use serde::Serialize;
 
 use crate::identify::{IdentifyConfig, Noise, identify, observe};
 use crate::infer::models::ServedModel;
+use crate::planner::predict::max_node_error;
 use crate::planner::{Planner, Predictor, Query, Stance, Strategy};
 use crate::seed::{derive_seed, standard_normal};
 use crate::sim::sampling::PushDistribution;
@@ -32,13 +33,6 @@ pub struct LoopOutcome {
     pub first: f64,
     pub second: f64,
     pub oracle: f64,
-}
-
-fn max_error(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| (p - q).norm())
-        .fold(0.0, f64::max)
 }
 
 /// Plans on `model_tree` and executes on `truth`: the push and the held
@@ -95,9 +89,9 @@ pub fn run_tree(
             .ok()
             .map(|o| o.final_positions)
     })?;
-    let no_action = max_error(nominal.positions(), &targets);
+    let no_action = max_node_error(nominal.positions(), &targets);
     let error = |held: Option<&(Push, Vec<Point3<f64>>)>| {
-        held.map_or(no_action, |(_, p)| max_error(p, &targets))
+        held.map_or(no_action, |(_, p)| max_node_error(p, &targets))
     };
     let first = plan_and_execute(planner, policy, forward, nominal, &truth, &targets, seed);
     let oracle = plan_and_execute(planner, policy, forward, &truth, &truth, &targets, seed);

@@ -34,6 +34,7 @@ use crate::identify::{
     IdentifyConfig, Noise, Posterior, Probe, Scale, Status, identify, observe, simulate_probe,
     with_stiffness,
 };
+use crate::planner::predict::max_node_error;
 use crate::seed::{derive_seed, standard_normal};
 use crate::sim::sampling::PushDistribution;
 use crate::sim::{ContactModel, Push};
@@ -158,13 +159,6 @@ fn truth_of(tree: &Tree, sigma: f64, global: bool, rng: &mut ChaCha8Rng) -> Tree
     with_stiffness(tree, &k)
 }
 
-fn max_error(a: &[nalgebra::Point3<f64>], b: &[nalgebra::Point3<f64>]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| (p - q).norm())
-        .fold(0.0, f64::max)
-}
-
 /// Simulated positions of `push` on `tree` (slot contact).
 fn held(tree: &Tree, push: Push) -> Option<Vec<nalgebra::Point3<f64>>> {
     let probe = Probe {
@@ -278,8 +272,8 @@ pub fn run_tree(nominal: &Tree, setting: &Setting, seed: u64, global: bool) -> T
         ) else {
             continue;
         };
-        with_estimate += max_error(&e, &t);
-        with_formula += max_error(&f, &t);
+        with_estimate += max_node_error(&e, &t);
+        with_formula += max_node_error(&f, &t);
         count += 1;
     }
     out.heldout_estimate = with_estimate / count.max(1) as f64;

@@ -17,6 +17,7 @@ use crate::dataset::SizeData;
 use crate::graph::{batch, encode_forward};
 use crate::identify::with_stiffness;
 use crate::infer::{InferError, OnnxModel};
+use crate::planner::predict::max_node_error;
 use crate::tree::{Tree, Wood};
 
 /// One size's scores (m).
@@ -79,13 +80,6 @@ fn predict(
         .collect())
 }
 
-fn max_distance(a: &[Point3<f64>], b: &[Point3<f64>]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| (p - q).norm())
-        .fold(0.0, f64::max)
-}
-
 /// Scores the first `limit` episodes of one size file.
 pub fn stiffness_scores(
     data: &SizeData,
@@ -110,12 +104,12 @@ pub fn stiffness_scores(
         let tripled = predict(model, &given(&|t| scaled(t, 3.0)))?;
         let thirded = predict(model, &given(&|t| scaled(t, 1.0 / 3.0)))?;
         for (k, e) in chunk.iter().enumerate() {
-            truth += max_distance(&with_true[k], &e.final_positions);
-            formula += max_distance(&with_nominal[k], &e.final_positions);
-            still += max_distance(trees[k].positions(), &e.final_positions);
+            truth += max_node_error(&with_true[k], &e.final_positions);
+            formula += max_node_error(&with_nominal[k], &e.final_positions);
+            still += max_node_error(trees[k].positions(), &e.final_positions);
             shift = shift
-                .max(max_distance(&with_true[k], &tripled[k]))
-                .max(max_distance(&with_true[k], &thirded[k]));
+                .max(max_node_error(&with_true[k], &tripled[k]))
+                .max(max_node_error(&with_true[k], &thirded[k]));
         }
     }
     let count = episodes.len().max(1) as f64;
