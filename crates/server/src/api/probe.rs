@@ -71,11 +71,20 @@ mod tests {
         ] {
             let listener = TcpListener::bind("127.0.0.1:0").unwrap();
             let addr = listener.local_addr().unwrap();
+            // Only the probe's own request is answered: another test that
+            // connects to a port it saw closed may reach this listener
+            // when the port number is reused, and must not take its answer.
             let server = std::thread::spawn(move || {
-                let (mut s, _) = listener.accept().unwrap();
-                let mut buf = [0u8; 256];
-                let _ = s.read(&mut buf);
-                s.write_all(answer.as_bytes()).unwrap();
+                loop {
+                    let (mut s, _) = listener.accept().unwrap();
+                    s.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+                    let mut buf = [0u8; 256];
+                    let n = s.read(&mut buf).unwrap_or(0);
+                    if buf[..n].starts_with(b"GET /healthz") {
+                        s.write_all(answer.as_bytes()).unwrap();
+                        break;
+                    }
+                }
             });
             let result = check(addr, Duration::from_secs(2));
             assert_eq!(result.is_ok(), healthy, "{answer}: {result:?}");
