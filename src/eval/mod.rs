@@ -8,3 +8,4 @@ pub mod plan;
 pub mod plots;
 pub mod ranks;
 pub mod stiffness;
+pub mod tasks;

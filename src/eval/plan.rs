@@ -79,7 +79,7 @@ pub struct EpisodeResult {
     pub outcomes: Vec<String>,
 }
 
-fn outcome_name<T: Serialize>(outcome: &T) -> String {
+pub fn outcome_name<T: Serialize>(outcome: &T) -> String {
     serde_json::to_value(outcome)
         .ok()
         .and_then(|v| v.as_str().map(str::to_owned))

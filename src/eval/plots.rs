@@ -326,3 +326,43 @@ pub fn identify_probes_svg(
     root.present()?;
     Ok(())
 }
+
+/// Horizontal bars of percentages, one per labelled row (0-100 %).
+pub fn bar_chart_svg(
+    bars: &[(String, f64)],
+    x_desc: &str,
+    path: &Path,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let rows = bars.len().max(1);
+    let root = SVGBackend::new(path, (760, 60 + 28 * rows as u32)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let labels: Vec<String> = bars.iter().map(|(l, _)| l.clone()).collect();
+    let mut chart = ChartBuilder::on(&root)
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(260)
+        .build_cartesian_2d(0.0..100.0, (0usize..rows).into_segmented())?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_labels(rows)
+        .y_label_formatter(&|v| match v {
+            SegmentValue::CenterOf(i) => labels.get(*i).cloned().unwrap_or_default(),
+            _ => String::new(),
+        })
+        .disable_y_mesh()
+        .draw()?;
+    chart.draw_series(bars.iter().enumerate().map(|(i, (_, pct))| {
+        let mut bar = Rectangle::new(
+            [
+                (0.0, SegmentValue::Exact(i)),
+                (pct.clamp(0.0, 100.0), SegmentValue::Exact(i + 1)),
+            ],
+            RGBColor(58, 110, 165).filled(),
+        );
+        bar.set_margin(3, 3, 0, 0);
+        bar
+    }))?;
+    root.present()?;
+    Ok(())
+}

@@ -16,6 +16,8 @@ mod progress;
 #[cfg(feature = "train")]
 mod ranks;
 mod sim;
+#[cfg(feature = "train")]
+mod tasks;
 mod trees;
 
 use clap::{Parser, Subcommand};
@@ -94,6 +96,10 @@ enum EvalCommand {
     /// The forward model on perturbed-stiffness test trees, given the true
     /// and the radius formula's stiffness, and under a global factor.
     Stiffness(identify_eval::EvalStiffnessArgs),
+    /// Orchard objectives (`clear` a fruit, `reach` a region, a masked
+    /// `shape`) on test trees under load limits, per strategy, with the
+    /// arm-free oracle; loads read from predictions against the simulator.
+    Tasks(tasks::EvalTasksArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -117,6 +123,8 @@ fn main() -> std::process::ExitCode {
         Command::Eval(EvalCommand::Stiffness(args)) => identify_eval::eval_stiffness(args),
         #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
+        #[cfg(feature = "train")]
+        Command::Eval(EvalCommand::Tasks(args)) => tasks::eval_tasks(args),
         #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Ranks(args)) => ranks::eval_ranks(args),
         #[cfg(feature = "train")]

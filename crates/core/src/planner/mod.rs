@@ -1,21 +1,28 @@
-//! Planning a push that moves the tree toward its target: the one entry
-//! point used by `/v1/plan`, `treemanip plan` and `treemanip eval plan`.
+//! Planning a push that serves an objective: the one entry point used by
+//! `/v1/plan`, `treemanip plan` and `treemanip eval plan` / `eval tasks`.
 //!
 //! It composes the contact policy ([`crate::infer`]), a predictor of what a
 //! push does (the forward model or the simulator, [`predict`]), and the arm
 //! ([`crate::robot`]):
-//! 1. the policy ranks the nodes and proposes a push T_j for each;
-//! 2. `paper` (Algorithm 1 as published) walks that ranking; `model` and
-//!    `physics` search the push of the top nodes ([`search`]), pruned by the
-//!    cheap reachability test ([`crate::robot::plan::reach`]) and scored by
-//!    the predicted largest node distance to the target;
+//! 1. for a full target shape the policy ranks the nodes and proposes a
+//!    push T_j for each; for other objectives ([`objective`]) the tree's
+//!    geometry proposes them ([`seeds`]);
+//! 2. `paper` (Algorithm 1 as published) walks the policy's ranking;
+//!    `model` and `physics` search the push of the top nodes ([`search`]),
+//!    pruned by the cheap reachability test
+//!    ([`crate::robot::plan::reach`]), scored by the objective's predicted
+//!    residual, pushes over the load [`Limits`] refused;
 //! 3. the best push is executed: its straight push against the deforming
-//!    tree, then RRT* for the approach, falling back to the next best;
+//!    tree (whose simulated loads are checked against the limits again),
+//!    then RRT* for the approach, falling back to the next best;
 //! 4. with a base region the arm may stand anywhere in it ([`base`]).
 
 pub mod base;
+pub mod objective;
 pub mod predict;
+mod run;
 pub mod search;
+pub mod seeds;
 
 use std::time::{Duration, Instant};
 
@@ -23,16 +30,19 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use serde::Serialize;
 
 use crate::robot::collision::{Allowed, CollisionModel, Obstacle, TreeObstacles};
-use crate::robot::plan::{Outcome, PlanOptions, PushPlan, PushSnapshots, execute, reach};
+use crate::robot::plan::{Outcome, PushPlan};
 use crate::robot::rrt::{Config, MotionValidator};
 use crate::robot::scene::PlanningScene;
 use crate::robot::{Ur5, ur5};
 use crate::sim::Push;
+use crate::sim::loads::PushLoads;
 use crate::tree::Tree;
 use base::{BasePose, BaseRegion};
+pub use objective::{Limits, Objective, Region};
+use predict::PhysicsPredictor;
 pub use predict::{Candidate, ContactPolicy, PredictError, Predictor};
-use predict::{PhysicsPredictor, max_node_error};
-use search::{SearchOptions, search_pushes};
+use run::Run;
+use search::{SearchOptions, score, search_pushes, sort_scored};
 
 /// How the push is chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, Default)]
@@ -59,7 +69,11 @@ pub enum Stance {
 #[derive(Debug, Clone)]
 pub struct Query {
     pub tree: Tree,
-    pub targets: Vec<Point3<f64>>,
+    /// What the push is for.
+    pub objective: Objective,
+    /// Loads `model` and `physics` may not exceed (`None`: no limits;
+    /// [`Query::new`] sets the defaults). `paper` reports, never enforces.
+    pub limits: Option<Limits>,
     pub stance: Stance,
     /// Start configuration; `None` is the home pose (or, with a base region,
     /// the first collision-free tucked pose at the chosen base).
@@ -76,9 +90,18 @@ pub struct Query {
 }
 
 impl Query {
-    /// A query with the default stance, strategy and budgets.
+    /// A full-shape query (the paper's) with the default stance,
+    /// strategy, limits and budgets.
     pub fn new(tree: Tree, targets: Vec<Point3<f64>>) -> Self {
+        Self::with_objective(tree, Objective::shape(targets))
+    }
+
+    /// A query for `objective` with the default stance, strategy, limits
+    /// and budgets.
+    pub fn with_objective(tree: Tree, objective: Objective) -> Self {
         Self {
+            objective,
+            limits: Some(Limits::default()),
             stance: Stance::Fixed(ur5::default_base()),
             start: None,
             obstacles: Vec::new(),
@@ -88,7 +111,6 @@ impl Query {
             max_evaluations: None,
             seed: 1,
             tree,
-            targets,
         }
     }
 }
@@ -135,12 +157,29 @@ pub const FALLBACK_PREDICTIONS: usize = 8;
 
 /// Nodes searched by default.
 pub const DEFAULT_CANDIDATES: usize = 4;
+/// Nodes searched by default when the geometry proposes them (`clear`,
+/// `reach`, a weighted shape): its proposals are cruder than the policy's,
+/// so more are tried (an intruding branch and its ancestors).
+pub const DEFAULT_GEOMETRIC_CANDIDATES: usize = 6;
+/// Over-limit pushes better than the one executed that are reported.
+const MAX_OVER_LIMIT_NOTED: usize = 4;
+/// How far over a limit a `model` prediction may read and still be
+/// checked by simulation: loads read from the forward model's positions err
+/// by a median 12 % and a p90 of 68 % in stress (`docs/results/tasks_eval.md`),
+/// so a strict screen drops pushes that are in fact within the limits (on
+/// 105 `clear` tasks with a base region, a screen at 1.0× met 74.6 % of the
+/// tasks the oracle meets, 1.5× 86.4 %, 2.0× 91.5 %, with no executed push
+/// over a limit in any).
+const MODEL_LOAD_SLACK: f64 = 2.0;
+/// Pushes whose simulation is checked (loads, and for `model` a `clear` or
+/// `reach` objective) at most: one simulation each, no arm work.
+const MAX_SIMULATED_CHECKS: usize = 24;
 /// Pushes executed (push check and RRT*) at most, best predicted first.
 const MAX_EXECUTIONS: usize = 6;
 /// RRT* iterations for a node's approach from a base where an approach to
 /// the same node already found no path: the pre-contact poses of a node's
 /// pushes lie close together, so a second full search rarely succeeds.
-const RETRY_ITERATIONS: usize = 800;
+pub(crate) const RETRY_ITERATIONS: usize = 800;
 
 /// One push the planner looked at, and what became of it.
 #[derive(Debug, Clone, Serialize)]
@@ -150,9 +189,15 @@ pub struct Attempt {
     pub rank: usize,
     pub push: [f64; 3],
     pub outcome: Outcome,
-    /// Predicted max node distance to the target after it (m).
+    /// The objective's predicted residual after it (m).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub predicted_error: Option<f64>,
+    /// Loads the search predicted for it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub predicted_loads: Option<PushLoads>,
+    /// Loads the simulation of its execution gave (when it got that far).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub simulated_loads: Option<PushLoads>,
     pub ms: f64,
 }
 
@@ -160,6 +205,8 @@ pub struct Attempt {
 #[derive(Debug, Clone, Serialize)]
 pub struct Plan {
     pub strategy: Strategy,
+    /// The objective's kind (`shape`, `clear`, `reach`).
+    pub objective: &'static str,
     /// The chosen push, its approach and push trajectory.
     pub plan: Option<PushPlan>,
     /// Where the arm stands (the given base, or the one chosen).
@@ -168,11 +215,18 @@ pub struct Plan {
     pub start: Config,
     /// Whether the planner chose `start` (no start given, base region).
     pub start_chosen: bool,
-    /// Predicted max node error after the chosen push (m); `None` for
-    /// `paper`, which does not predict.
+    /// The objective's predicted residual after the chosen push (m);
+    /// `None` for `paper`, which does not predict.
     pub predicted_error: Option<f64>,
-    /// Max node error if nothing is done (m).
+    /// The objective's residual if nothing is done (m).
     pub no_action_error: f64,
+    /// The chosen push's predicted loads (`None` for `paper`).
+    pub predicted_loads: Option<PushLoads>,
+    /// The chosen push's loads as the simulator gives them (the
+    /// simulation its push line was checked with).
+    pub simulated_loads: Option<PushLoads>,
+    /// The limits enforced (`None` for `paper` or without limits).
+    pub limits: Option<Limits>,
     /// Pushes predicted by the search.
     pub evaluations: usize,
     pub attempts: Vec<Attempt>,
@@ -187,6 +241,10 @@ pub enum PlanError {
     NoForwardModel,
     #[error("inference failed: {0}")]
     Predict(#[from] PredictError),
+    #[error(
+        "the `paper` strategy plans only `shape` objectives (the contact policy was trained for target shapes); use `model` or `physics` for `{0}`"
+    )]
+    PaperNeedsShape(&'static str),
 }
 
 /// The arm's collision geometry, built once, moved to each request's base.
@@ -201,7 +259,7 @@ impl Default for Planner {
 }
 
 /// An arm placed at one base with its start configuration.
-struct Placed {
+pub(crate) struct Placed {
     pose: BasePose,
     arm: CollisionModel,
     start: Config,
@@ -233,19 +291,51 @@ impl Planner {
     ) -> Result<Plan, PlanError> {
         let clock = Instant::now();
         let tree = &query.tree;
+        let objective = &query.objective;
         let rest = TreeObstacles::new(tree).with_obstacles(&query.obstacles);
-        let ranked = policy.rank(tree, &query.targets)?;
-        let policy_pushes: Vec<(usize, Push)> = ranked
-            .iter()
-            .map(|c| {
-                let push = Push {
-                    node: c.node,
-                    vector: Vector3::from(c.push),
+        // The pushes proposed, with their rank: the policy's for a full
+        // shape (and any shape for `paper`), the geometry's otherwise.
+        let proposals: Vec<(usize, Push)> = match (objective, query.strategy) {
+            (Objective::Shape { targets, .. }, Strategy::Paper) => ranked(policy, tree, targets)?,
+            (_, Strategy::Paper) => return Err(PlanError::PaperNeedsShape(objective.kind())),
+            (Objective::Shape { targets, .. }, _) if objective.full_shape().is_some() => {
+                ranked(policy, tree, targets)?
+            }
+            _ => {
+                let geometric = seeds::geometric_seeds(
+                    tree,
+                    objective,
+                    query.max_candidates.max(DEFAULT_GEOMETRIC_CANDIDATES),
+                );
+                // A weighted shape still has targets for every node: the
+                // policy's ranking for them is a second opinion, taken in
+                // turns with the geometry's.
+                let policy_pushes = match objective {
+                    Objective::Shape { targets, .. } => ranked(policy, tree, targets)?
+                        .into_iter()
+                        .map(|(_, p)| p)
+                        .collect(),
+                    _ => Vec::new(),
                 };
-                (c.rank, push)
-            })
-            .collect();
-        let rank_of = |node: usize| ranked.iter().find(|c| c.node == node).map_or(0, |c| c.rank);
+                interleave(&geometric, &policy_pushes)
+                    .into_iter()
+                    .enumerate()
+                    .map(|(k, p)| (k + 1, p))
+                    .collect()
+            }
+        };
+        // How many of them the search starts from.
+        let searched = if objective.full_shape().is_some() {
+            query.max_candidates.max(1)
+        } else {
+            query.max_candidates.max(DEFAULT_GEOMETRIC_CANDIDATES)
+        };
+        let rank_of = |node: usize| {
+            proposals
+                .iter()
+                .find(|(_, p)| p.node == node)
+                .map_or(0, |(r, _)| *r)
+        };
         let fixed = match &query.stance {
             Stance::Fixed(base) => {
                 let arm = self.placed_at(base);
@@ -262,6 +352,18 @@ impl Planner {
             }
             Stance::Region(_) => None,
         };
+        let enforce_limits = query.strategy != Strategy::Paper;
+        let limits = query.limits.filter(|_| enforce_limits);
+        // The limits the search screens predictions with: for `model`,
+        // loosened by its load error (the simulation of each push about to
+        // be executed is held to the limits themselves).
+        let screen = limits.map(|l| match query.strategy {
+            Strategy::Model => Limits {
+                max_stress: l.max_stress * MODEL_LOAD_SLACK,
+                max_contact_force: l.max_contact_force * MODEL_LOAD_SLACK,
+            },
+            _ => l,
+        });
         let mut run = Run {
             planner: self,
             query,
@@ -270,10 +372,14 @@ impl Planner {
             clock,
             attempts: Vec::new(),
             no_path: Vec::new(),
+            enforce_limits,
+            verify: query.strategy == Strategy::Model && objective.has_goal_region(),
+            missed: Vec::new(),
         };
-        let no_action_error = max_node_error(tree.positions(), &query.targets);
+        let no_action_error = objective.residual(tree, tree.positions());
         let mut evaluations = 0;
-        let mut found: Option<(PushPlan, Placed, Option<f64>)> = None;
+        // (plan, placement, predicted residual, predicted loads, simulated loads)
+        let mut found: Option<Found> = None;
         let physics = PhysicsPredictor;
         let predictor: Option<&dyn Predictor> = match query.strategy {
             Strategy::Paper => None,
@@ -281,22 +387,49 @@ impl Planner {
             Strategy::Model => Some(forward.ok_or(PlanError::NoForwardModel)?),
         };
         if let Some(predictor) = predictor {
-            let seeds: Vec<Push> = policy_pushes
-                .iter()
-                .take(query.max_candidates.max(1))
-                .map(|(_, p)| *p)
-                .collect();
+            let seeds: Vec<Push> = proposals.iter().take(searched).map(|(_, p)| *p).collect();
             let options = SearchOptions {
                 max_evaluations: query.evaluations(),
                 seed: query.seed,
                 ..SearchOptions::default()
             };
             let feasible = |p: &Push| run.reachable(p);
-            let (scored, count) =
-                search_pushes(tree, &query.targets, &seeds, predictor, &feasible, &options)?;
+            let (scored, count) = search_pushes(
+                tree,
+                objective,
+                screen.as_ref(),
+                &seeds,
+                predictor,
+                &feasible,
+                &options,
+            )?;
             evaluations = count;
-            for s in scored.iter().take(MAX_EXECUTIONS) {
+            let mut executed = 0;
+            let mut checked = 0;
+            let mut over_limit = 0;
+            for s in &scored {
                 let rank = rank_of(s.push.node);
+                if !s.within_limits {
+                    // Sorted after every push within the limits: only the
+                    // ones reached here, none of those left, are noted.
+                    if over_limit < MAX_OVER_LIMIT_NOTED {
+                        run.note(
+                            rank,
+                            &s.push,
+                            Outcome::OverLimit,
+                            Some(s.predicted_error),
+                            0.0,
+                        );
+                        if let Some(a) = run.attempts.last_mut() {
+                            a.predicted_loads = Some(s.loads);
+                        }
+                    }
+                    over_limit += 1;
+                    continue;
+                }
+                if executed >= MAX_EXECUTIONS || checked >= MAX_SIMULATED_CHECKS {
+                    break;
+                }
                 if s.predicted_error >= no_action_error {
                     run.note(
                         rank,
@@ -307,8 +440,27 @@ impl Planner {
                     );
                     break;
                 }
-                if let Some((plan, placed)) = run.try_push(rank, &s.push, Some(s.predicted_error)) {
-                    found = Some((plan, placed, Some(s.predicted_error)));
+                let tried = run.try_push(rank, &s.push, Some(s.predicted_error));
+                // A push passed over on its simulation alone cost no arm
+                // work: it counts against the simulated checks only.
+                checked += 1;
+                if !matches!(
+                    run.attempts.last().map(|a| a.outcome),
+                    Some(Outcome::OverLimit | Outcome::Missed)
+                ) {
+                    executed += 1;
+                }
+                if let Some(a) = run.attempts.last_mut() {
+                    a.predicted_loads = Some(s.loads);
+                }
+                if let Some((plan, placed, simulated)) = tried {
+                    found = Some(Found {
+                        plan,
+                        placed,
+                        predicted: Some(s.predicted_error),
+                        predicted_loads: Some(s.loads),
+                        simulated_loads: simulated,
+                    });
                     break;
                 }
             }
@@ -316,14 +468,15 @@ impl Planner {
         if found.is_none() {
             // Algorithm 1 as published; for the searching strategies the
             // fallback when no searched push could be carried out: the
-            // policy's pushes the arm can reach (the reach test costs far
+            // proposed pushes the arm can reach (the reach test costs far
             // less than a prediction, and most low-ranked pushes fail it
             // from a fixed base), the best ranked predicted in one batch
             // (what is left of the evaluation budget, at least
-            // FALLBACK_PREDICTIONS) and the unhelpful ones dropped.
-            let policy_pushes: Vec<(usize, Push)> = match predictor {
-                None => policy_pushes,
-                Some(_) => policy_pushes
+            // FALLBACK_PREDICTIONS) and the unhelpful and overloading ones
+            // dropped.
+            let proposals: Vec<(usize, Push)> = match predictor {
+                None => proposals,
+                Some(_) => proposals
                     .into_iter()
                     .filter(|(rank, push)| match run.reach_check(push) {
                         Ok(()) => true,
@@ -334,55 +487,106 @@ impl Planner {
                     })
                     .collect(),
             };
-            let predicted: Vec<Option<f64>> = match predictor {
-                None => vec![None; policy_pushes.len()],
+            let predicted: Vec<Option<search::Scored>> = match predictor {
+                None => vec![None; proposals.len()],
                 Some(p) => {
                     let left = query
                         .evaluations()
                         .saturating_sub(evaluations)
                         .max(FALLBACK_PREDICTIONS);
-                    let pushes: Vec<Push> =
-                        policy_pushes.iter().take(left).map(|(_, p)| *p).collect();
+                    let pushes: Vec<Push> = proposals.iter().take(left).map(|(_, p)| *p).collect();
                     evaluations += pushes.len();
-                    let mut predicted: Vec<Option<f64>> = p
-                        .final_positions(tree, &pushes)?
-                        .into_iter()
-                        .map(|f| {
-                            Some(f.map_or(f64::INFINITY, |f| max_node_error(&f, &query.targets)))
-                        })
-                        .collect();
-                    predicted.resize(policy_pushes.len(), None);
-                    predicted
+                    let predictions = p.predict(tree, &pushes)?;
+                    let mut scored = score(tree, objective, screen.as_ref(), &pushes, predictions);
+                    scored.resize(proposals.len(), None);
+                    scored
                 }
             };
-            for ((rank, push), predicted) in policy_pushes.iter().zip(predicted) {
-                if let Some(e) = predicted
-                    && e >= no_action_error
-                {
-                    run.note(*rank, push, Outcome::NotHelpful, Some(e), 0.0);
-                    continue;
+            // Predicted ones in the search's order, the rest as ranked.
+            let mut order: Vec<usize> = (0..proposals.len()).collect();
+            if predictor.is_some() {
+                let mut known: Vec<search::Scored> = predicted.iter().flatten().copied().collect();
+                sort_scored(&mut known, objective);
+                order.sort_by_key(|&k| {
+                    predicted[k]
+                        .and_then(|s| known.iter().position(|x| *x == s))
+                        .unwrap_or(usize::MAX)
+                });
+            }
+            for k in order {
+                let (rank, push) = &proposals[k];
+                let scored = predicted[k];
+                if predictor.is_some() {
+                    let Some(s) = scored else {
+                        // Beyond the predictions allowed (or rejected by
+                        // the simulator): a searching strategy never
+                        // executes a push it has not predicted.
+                        run.note(*rank, push, Outcome::Skipped, None, 0.0);
+                        continue;
+                    };
+                    let outcome = if !s.within_limits {
+                        Some(Outcome::OverLimit)
+                    } else if s.predicted_error >= no_action_error {
+                        Some(Outcome::NotHelpful)
+                    } else {
+                        None
+                    };
+                    if let Some(outcome) = outcome {
+                        run.note(*rank, push, outcome, Some(s.predicted_error), 0.0);
+                        if let Some(a) = run.attempts.last_mut() {
+                            a.predicted_loads = Some(s.loads);
+                        }
+                        continue;
+                    }
                 }
-                if predictor.is_some() && predicted.is_none() {
-                    // Beyond the predictions allowed: a searching strategy
-                    // never executes a push it has not predicted.
-                    run.note(*rank, push, Outcome::Skipped, None, 0.0);
-                    continue;
+                let predicted_error = scored.map(|s| s.predicted_error);
+                let tried = run.try_push(*rank, push, predicted_error);
+                if let Some(a) = run.attempts.last_mut() {
+                    a.predicted_loads = scored.map(|s| s.loads);
                 }
-                if let Some((plan, placed)) = run.try_push(*rank, push, predicted) {
-                    found = Some((plan, placed, predicted));
+                if let Some((plan, placed, simulated)) = tried {
+                    found = Some(Found {
+                        plan,
+                        placed,
+                        predicted: predicted_error,
+                        predicted_loads: scored.map(|s| s.loads),
+                        simulated_loads: simulated,
+                    });
+                    break;
+                }
+            }
+        }
+        if found.is_none() {
+            // Nothing met the objective: the missed push that came closest
+            // in its simulation, if it helps at all.
+            let mut missed = std::mem::take(&mut run.missed);
+            missed.sort_by(|a, b| a.2.total_cmp(&b.2));
+            run.verify = false;
+            for (rank, push, residual) in missed.into_iter().take(2) {
+                if residual >= no_action_error {
+                    break;
+                }
+                if let Some((plan, placed, simulated)) = run.try_push(rank, &push, Some(residual)) {
+                    found = Some(Found {
+                        plan,
+                        placed,
+                        predicted: Some(residual),
+                        predicted_loads: simulated,
+                        simulated_loads: simulated,
+                    });
                     break;
                 }
             }
         }
         let attempts = run.attempts;
-        let (plan, placed, predicted_error) = match found {
-            Some((plan, placed, predicted)) => (Some(plan), Some(placed), predicted),
-            None => (None, None, None),
-        };
-        let (base, start, start_chosen) = match (placed, &fixed, &query.stance) {
-            (Some(p), _, _) => (p.pose, p.start, query.start.is_none() && fixed.is_none()),
-            (None, Some(f), _) => (f.pose, f.start, false),
-            (None, None, _) => (
+        let (base, start, start_chosen) = match (&found, &fixed) {
+            (Some(f), _) => (
+                f.placed.pose,
+                f.placed.start,
+                query.start.is_none() && fixed.is_none(),
+            ),
+            (None, Some(f)) => (f.pose, f.start, false),
+            (None, None) => (
                 BasePose::of(&ur5::default_base()),
                 query.start.unwrap_or(ur5::HOME),
                 false,
@@ -390,12 +594,16 @@ impl Planner {
         };
         Ok(Plan {
             strategy: query.strategy,
-            plan,
+            objective: objective.kind(),
             base,
             start,
             start_chosen,
-            predicted_error,
+            predicted_error: found.as_ref().and_then(|f| f.predicted),
             no_action_error,
+            predicted_loads: found.as_ref().and_then(|f| f.predicted_loads),
+            simulated_loads: found.as_ref().and_then(|f| f.simulated_loads),
+            limits,
+            plan: found.map(|f| f.plan),
             evaluations,
             attempts,
             total_ms: clock.elapsed().as_secs_f64() * 1e3,
@@ -403,177 +611,43 @@ impl Planner {
     }
 }
 
-/// The state of one planning call.
-struct Run<'a> {
-    planner: &'a Planner,
-    query: &'a Query,
-    rest: &'a TreeObstacles,
-    fixed: &'a Option<Placed>,
-    clock: Instant,
-    attempts: Vec<Attempt>,
-    /// (node, base) pairs whose approach RRT* found no path.
-    no_path: Vec<(usize, BasePose)>,
+/// A push carried out, with what was predicted and simulated of it.
+struct Found {
+    plan: PushPlan,
+    placed: Placed,
+    predicted: Option<f64>,
+    predicted_loads: Option<PushLoads>,
+    simulated_loads: Option<PushLoads>,
 }
 
-impl Run<'_> {
-    fn remaining(&self) -> Duration {
-        self.query.budget.saturating_sub(self.clock.elapsed())
-    }
-
-    fn note(
-        &mut self,
-        rank: usize,
-        push: &Push,
-        outcome: Outcome,
-        predicted: Option<f64>,
-        ms: f64,
-    ) {
-        self.attempts.push(Attempt {
-            node: push.node,
-            rank,
-            push: push.vector.into(),
-            outcome,
-            predicted_error: predicted,
-            ms,
-        });
-    }
-
-    /// The arm placements to try for `push`: the fixed base, or the region's
-    /// proposals, each with a collision-free start.
-    fn placements(&self, push: &Push) -> Vec<Placed> {
-        match (self.fixed, &self.query.stance) {
-            (Some(f), _) => vec![Placed {
-                pose: f.pose,
-                arm: f.arm.clone(),
-                start: f.start,
-            }],
-            (None, Stance::Region(region)) => base::proposals(region, &self.query.tree, push)
-                .into_iter()
-                .filter_map(|pose| {
-                    let arm = self.planner.placed_at(&pose.isometry());
-                    let free = PlanningScene::new(&arm, self.rest, Allowed::default());
-                    let start = match self.query.start {
-                        Some(q) => free.config_valid(&q).then_some(q),
-                        None => base::tucked_starts()
-                            .into_iter()
-                            .find(|q| free.config_valid(q)),
-                    }?;
-                    Some(Placed { pose, arm, start })
-                })
-                .collect(),
-            (None, Stance::Fixed(_)) => Vec::new(),
-        }
-    }
-
-    /// Whether the arm can reach `push` from some placement (the cheap test).
-    fn reachable(&self, push: &Push) -> bool {
-        self.reach_check(push).is_ok()
-    }
-
-    /// [`Self::reachable`], or the furthest any placement got.
-    fn reach_check(&self, push: &Push) -> Result<(), Outcome> {
-        let tree = &self.query.tree;
-        match (self.fixed, &self.query.stance) {
-            (Some(f), _) => reach(&f.arm, tree, self.rest, push, &f.start).map(|_| ()),
-            (None, Stance::Region(region)) => {
-                let mut outcome = Outcome::Unreachable;
-                for pose in base::proposals(region, tree, push) {
-                    let arm = self.planner.placed_at(&pose.isometry());
-                    match reach(&arm, tree, self.rest, push, &ur5::HOME) {
-                        Ok(_) => return Ok(()),
-                        Err(o) => outcome = worst_to_best(outcome, o),
-                    }
-                }
-                Err(outcome)
-            }
-            (None, Stance::Fixed(_)) => Err(Outcome::Unreachable),
-        }
-    }
-
-    /// Tries to carry out `push` from each placement; records the attempt.
-    fn try_push(
-        &mut self,
-        rank: usize,
-        push: &Push,
-        predicted: Option<f64>,
-    ) -> Option<(PushPlan, Placed)> {
-        let remaining = self.remaining();
-        if remaining.is_zero() {
-            self.note(rank, push, Outcome::Skipped, predicted, 0.0);
-            return None;
-        }
-        let started = Instant::now();
-        let tree = &self.query.tree;
-        let mut options = PlanOptions::default();
-        options.rrt.seed = self.query.seed;
-        let full_iterations = options.rrt.max_iterations;
-        let placements = self.placements(push);
-        let mut outcome = if placements.is_empty() {
-            Outcome::StartInCollision
-        } else {
-            Outcome::Unreachable
-        };
-        // The deformed tree does not depend on the base: simulated once, as
-        // far as the push lines get.
-        let snapshots = PushSnapshots::new(tree, push, self.rest);
-        let mut result = None;
-        for placed in placements {
-            let remaining = self.remaining();
-            if remaining.is_zero() {
-                break;
-            }
-            options.rrt.time_budget = options.rrt.time_budget.map(|b| b.min(remaining));
-            let failed_before = self.no_path.contains(&(push.node, placed.pose));
-            options.rrt.max_iterations = if failed_before {
-                RETRY_ITERATIONS.min(full_iterations)
-            } else {
-                full_iterations
+/// The policy's ranking as (rank, push).
+fn ranked(
+    policy: &dyn ContactPolicy,
+    tree: &Tree,
+    targets: &[Point3<f64>],
+) -> Result<Vec<(usize, Push)>, PredictError> {
+    Ok(policy
+        .rank(tree, targets)?
+        .iter()
+        .map(|c| {
+            let push = Push {
+                node: c.node,
+                vector: Vector3::from(c.push),
             };
-            let goals = match reach(&placed.arm, tree, self.rest, push, &placed.start) {
-                Ok(goals) => goals,
-                Err(o) => {
-                    outcome = worst_to_best(outcome, o);
-                    continue;
-                }
-            };
-            match execute(
-                &placed.arm,
-                tree,
-                self.rest,
-                &snapshots,
-                push,
-                &goals,
-                &placed.start,
-                &options,
-            ) {
-                Ok(plan) => {
-                    result = Some((PushPlan { rank, ..plan }, placed));
-                    outcome = Outcome::Planned;
-                    break;
-                }
-                Err(o) => {
-                    if o == Outcome::NoPath && !failed_before {
-                        self.no_path.push((push.node, placed.pose));
-                    }
-                    outcome = worst_to_best(outcome, o);
-                }
-            }
-        }
-        let ms = started.elapsed().as_secs_f64() * 1e3;
-        self.note(rank, push, outcome, predicted, ms);
-        result
-    }
+            (c.rank, push)
+        })
+        .collect())
 }
 
-/// Over several bases, report the outcome that got furthest.
-fn worst_to_best(a: Outcome, b: Outcome) -> Outcome {
-    let depth = |o: Outcome| match o {
-        Outcome::StartInCollision | Outcome::InvalidCandidate => 0,
-        Outcome::Unreachable => 1,
-        Outcome::GoalInCollision => 2,
-        Outcome::PushInfeasible => 3,
-        Outcome::NoPath => 4,
-        _ => 5,
-    };
-    if depth(b) > depth(a) { b } else { a }
+/// `a` and `b` taken in turns, each node once.
+fn interleave(a: &[Push], b: &[Push]) -> Vec<Push> {
+    let mut out: Vec<Push> = Vec::new();
+    for k in 0..a.len().max(b.len()) {
+        for p in [a.get(k), b.get(k)].into_iter().flatten() {
+            if !out.iter().any(|q| q.node == p.node) {
+                out.push(*p);
+            }
+        }
+    }
+    out
 }

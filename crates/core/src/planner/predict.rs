@@ -8,6 +8,7 @@ use nalgebra::Point3;
 
 use serde::Serialize;
 
+use crate::sim::loads::PushLoads;
 use crate::sim::{Push, SimConfig, simulate};
 use crate::tree::Tree;
 
@@ -63,6 +64,35 @@ pub trait Predictor: Sync {
 
     /// `model` or `physics`.
     fn name(&self) -> &'static str;
+
+    /// The held state after each push: positions and loads. By default the
+    /// loads are read from the predicted positions
+    /// ([`PushLoads::from_positions`]); the simulator gives its own.
+    fn predict(
+        &self,
+        tree: &Tree,
+        pushes: &[Push],
+    ) -> Result<Vec<Option<Predicted>>, PredictError> {
+        let contact = SimConfig::default().contact;
+        Ok(self
+            .final_positions(tree, pushes)?
+            .into_iter()
+            .zip(pushes)
+            .map(|(positions, push)| {
+                positions.map(|positions| Predicted {
+                    loads: PushLoads::from_positions(tree, push, &positions, contact),
+                    positions,
+                })
+            })
+            .collect())
+    }
+}
+
+/// What a push is predicted to leave: the held tree and its loads.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Predicted {
+    pub positions: Vec<Point3<f64>>,
+    pub loads: PushLoads,
 }
 
 /// The simulator itself: exact when the tree's stiffness is known, and the
@@ -88,5 +118,24 @@ impl Predictor for PhysicsPredictor {
 
     fn name(&self) -> &'static str {
         "physics"
+    }
+
+    fn predict(
+        &self,
+        tree: &Tree,
+        pushes: &[Push],
+    ) -> Result<Vec<Option<Predicted>>, PredictError> {
+        use rayon::prelude::*;
+        Ok(pushes
+            .par_iter()
+            .map(|p| {
+                simulate(tree, p, &SimConfig::default())
+                    .ok()
+                    .map(|o| Predicted {
+                        loads: PushLoads::of_outcome(tree, &o),
+                        positions: o.final_positions,
+                    })
+            })
+            .collect())
     }
 }

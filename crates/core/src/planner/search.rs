@@ -1,18 +1,22 @@
 //! Choosing the push vector for each candidate node: a few rounds of the
 //! cross-entropy method around the contact policy's push T_j, every round of
-//! every node predicted in one batch, each push scored by the predicted
-//! largest node distance to the target (the paper's metric).
+//! every node predicted in one batch, each push scored by the objective's
+//! predicted residual (for a full shape, the paper's largest node distance
+//! to the target). With limits, a push predicted to overload the tree ranks
+//! after every push that does not; among pushes that satisfy a `clear` or
+//! `reach` objective the least stressing, then the shortest, ranks first.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use super::predict::PredictError;
-use super::predict::{Predictor, max_node_error};
+use super::objective::{Limits, Objective, SATISFIED};
+use super::predict::{PredictError, Predictor};
 use crate::model::domain::Margin;
 use crate::seed::standard_normal;
 use crate::sim::Push;
+use crate::sim::loads::PushLoads;
 use crate::tree::Tree;
 
 /// The paper's pushes are 5-15 cm; the forward model was trained on them.
@@ -55,12 +59,45 @@ impl Default for SearchOptions {
     }
 }
 
-/// A push and the error it is predicted to leave.
+/// A push and what it is predicted to leave.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Scored {
     pub push: Push,
-    /// Predicted max node distance to the target after the push (m).
+    /// The objective's predicted residual after the push (m).
     pub predicted_error: f64,
+    /// Predicted loads of the held push.
+    pub loads: PushLoads,
+    /// Whether the loads stay within the limits (always, without limits).
+    pub within_limits: bool,
+}
+
+impl Scored {
+    /// The search's order: within the limits first, then the residual; for
+    /// objectives met exactly (`clear`, `reach`) ties at zero go to the
+    /// smaller peak stress, then the shorter push.
+    fn order(&self, other: &Self, regional: bool) -> std::cmp::Ordering {
+        let key = |s: &Self| {
+            let met = regional && s.predicted_error <= SATISFIED;
+            let residual = if met { 0.0 } else { s.predicted_error };
+            let (stress, length) = if met {
+                (s.loads.peak_stress, s.push.vector.norm())
+            } else {
+                (0.0, 0.0)
+            };
+            (!s.within_limits, residual, stress, length)
+        };
+        let (a, b) = (key(self), key(other));
+        a.0.cmp(&b.0)
+            .then(a.1.total_cmp(&b.1))
+            .then(a.2.total_cmp(&b.2))
+            .then(a.3.total_cmp(&b.3))
+    }
+}
+
+/// Sorts `scored` best first (see [`Scored`]'s order).
+pub fn sort_scored(scored: &mut [Scored], objective: &Objective) {
+    let regional = objective.has_goal_region();
+    scored.sort_by(|a, b| a.order(b, regional));
 }
 
 /// `v` with its length clamped into the trained range.
@@ -79,12 +116,36 @@ fn scored_as_is(v: &Vector3<f64>) -> bool {
     (MIN_PUSH / Margin::STANDARD.push_factor..=MAX_PUSH).contains(&v.norm())
 }
 
-/// Searches a push for each seed (node, T_j). `feasible` prunes pushes the
-/// arm cannot carry out before they are predicted. Returns every scored
-/// push, best first, and the number of predictions made.
+/// Scores each prediction: the objective's residual and the limits' verdict.
+pub fn score(
+    tree: &Tree,
+    objective: &Objective,
+    limits: Option<&Limits>,
+    pushes: &[Push],
+    predicted: Vec<Option<super::predict::Predicted>>,
+) -> Vec<Option<Scored>> {
+    let scorer = objective.scorer();
+    pushes
+        .iter()
+        .zip(predicted)
+        .map(|(push, p)| {
+            p.map(|p| Scored {
+                push: *push,
+                predicted_error: scorer.residual(tree, &p.positions),
+                within_limits: limits.is_none_or(|l| l.allow(&p.loads)),
+                loads: p.loads,
+            })
+        })
+        .collect()
+}
+
+/// Searches a push for each seed (node, initial push). `feasible` prunes
+/// pushes the arm cannot carry out before they are predicted. Returns every
+/// scored push, best first, and the number of predictions made.
 pub fn search_pushes(
     tree: &Tree,
-    targets: &[Point3<f64>],
+    objective: &Objective,
+    limits: Option<&Limits>,
     seeds: &[Push],
     predictor: &dyn Predictor,
     feasible: &(dyn Fn(&Push) -> bool + Sync),
@@ -164,16 +225,15 @@ pub fn search_pushes(
             break;
         }
         let pushes: Vec<Push> = candidates.iter().map(|c| c.1).collect();
-        let predicted = predictor.final_positions(tree, &pushes)?;
+        let predicted = predictor.predict(tree, &pushes)?;
         evaluations += pushes.len();
         let mut by_seed: Vec<Vec<Scored>> = vec![Vec::new(); seeds.len()];
-        for ((k, push), positions) in candidates.into_iter().zip(predicted) {
-            if let Some(positions) = positions {
-                let s = Scored {
-                    push,
-                    predicted_error: max_node_error(&positions, targets),
-                };
-                by_seed[k].push(s);
+        for ((k, _), s) in candidates
+            .iter()
+            .zip(score(tree, objective, limits, &pushes, predicted))
+        {
+            if let Some(s) = s {
+                by_seed[*k].push(s);
                 scored.push(s);
             }
         }
@@ -181,8 +241,10 @@ pub fn search_pushes(
             if round_scores.is_empty() {
                 continue;
             }
-            round_scores.sort_by(|a, b| a.predicted_error.total_cmp(&b.predicted_error));
-            best[k] = best[k].min(round_scores[0].predicted_error);
+            sort_scored(&mut round_scores, objective);
+            if round_scores[0].within_limits {
+                best[k] = best[k].min(round_scores[0].predicted_error);
+            }
             let elite = &round_scores[..options.elite.min(round_scores.len())];
             let mean =
                 elite.iter().map(|s| s.push.vector).sum::<Vector3<f64>>() / elite.len() as f64;
@@ -204,7 +266,7 @@ pub fn search_pushes(
             break;
         }
     }
-    scored.sort_by(|a, b| a.predicted_error.total_cmp(&b.predicted_error));
+    sort_scored(&mut scored, objective);
     Ok((scored, evaluations))
 }
 
@@ -249,8 +311,17 @@ mod tests {
                 node,
                 vector: direction * length,
             };
-            let (scored, _) =
-                search_pushes(&tree, targets, &[seed], &PhysicsPredictor, &all, &options).unwrap();
+            let objective = Objective::shape(targets.to_vec());
+            let (scored, _) = search_pushes(
+                &tree,
+                &objective,
+                None,
+                &[seed],
+                &PhysicsPredictor,
+                &all,
+                &options,
+            )
+            .unwrap();
             let has_own = scored.iter().any(|s| s.push.vector == seed.vector);
             assert_eq!(has_own, kept, "a {length} m push");
             for s in &scored {

@@ -41,6 +41,7 @@ use super::rrt::{Config, MotionValidator, RrtError, RrtStarOptions, distance, rr
 use super::scene::PlanningScene;
 use super::trajectory::{TimedPoint, time_parameterize};
 use super::ur5::{MAX_ACCELERATION, MAX_VELOCITY};
+use crate::sim::loads::PushLoads;
 use crate::sim::{GRIP_OFFSET, Push, SimConfig, simulate_from};
 use crate::tree::Tree;
 
@@ -111,6 +112,13 @@ pub enum Outcome {
     NotHelpful,
     /// The start configuration collides at this base (mobile bases only).
     StartInCollision,
+    /// The push is predicted (or, when executed, simulated) to exceed a
+    /// load limit: the branch's bending stress or the gripper's force.
+    OverLimit,
+    /// Predicted to meet a `clear` or `reach` objective, but the simulation
+    /// of its push (run for the push line's collision check) misses it;
+    /// carried out only if no push meets the objective.
+    Missed,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -327,7 +335,9 @@ pub struct PushSnapshots<'a> {
 
 struct Snapshot {
     obstacles: TreeObstacles,
+    positions: Vec<nalgebra::Point3<f64>>,
     joint_rotations: Vec<Vector3<f64>>,
+    loads: PushLoads,
 }
 
 impl<'a> PushSnapshots<'a> {
@@ -359,21 +369,45 @@ impl<'a> PushSnapshots<'a> {
                     node: self.push.node,
                     vector: self.push.vector * (k as f64 / self.count() as f64),
                 };
-                // Warm-started from the nearest earlier snapshot solved.
-                let warm = self.cache[..k - 1]
+                // Warm-started from the nearest earlier snapshot solved, or
+                // else from the whole push's rotations scaled down (the
+                // planner solves the whole push first to check it).
+                let earlier = self.cache[..k - 1]
                     .iter()
                     .rev()
                     .find_map(|c| c.get().and_then(|s| s.as_ref()))
-                    .map(|s| s.joint_rotations.as_slice());
-                simulate_from(self.tree, &partial, &SimConfig::default(), warm)
+                    .map(|s| s.joint_rotations.clone());
+                let scaled = || {
+                    self.cache[self.count() - 1]
+                        .get()
+                        .and_then(|s| s.as_ref())
+                        .map(|s| {
+                            let f = k as f64 / self.count() as f64;
+                            s.joint_rotations.iter().map(|r| r * f).collect::<Vec<_>>()
+                        })
+                };
+                let warm = earlier.or_else(scaled);
+                simulate_from(self.tree, &partial, &SimConfig::default(), warm.as_deref())
                     .ok()
                     .map(|o| Snapshot {
                         obstacles: self.rest.with_tree_at(self.tree, &o.final_positions),
+                        loads: PushLoads::of_outcome(self.tree, &o),
+                        positions: o.final_positions,
                         joint_rotations: o.joint_rotations,
                     })
             })
             .as_ref()
             .map(|s| &s.obstacles)
+    }
+
+    /// The whole push, held, as the simulator gives it: node positions and
+    /// loads (`None` when the simulator rejects it).
+    pub fn final_state(&self) -> Option<(&[nalgebra::Point3<f64>], PushLoads)> {
+        self.at(self.count())?;
+        self.cache[self.count() - 1]
+            .get()
+            .and_then(|s| s.as_ref())
+            .map(|s| (s.positions.as_slice(), s.loads))
     }
 }
 

@@ -79,3 +79,106 @@ pub fn branch_loads(tree: &Tree, joint_rotations: &[Vector3<f64>]) -> BranchLoad
     }
     loads
 }
+
+/// The loads a planner weighs a push by: the most stressed branch and the
+/// force the gripper must apply.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PushLoads {
+    /// Largest bending stress over the branches (Pa), 0 when nothing bends.
+    pub peak_stress: f64,
+    /// The branch (its node) where the peak occurs.
+    pub peak_node: Option<usize>,
+    /// Magnitude of the force the gripper applies to the branch (N).
+    pub contact_force: f64,
+}
+
+impl PushLoads {
+    /// The simulator's own numbers for a solved push.
+    pub fn of_outcome(tree: &Tree, outcome: &super::PushOutcome) -> Self {
+        let peak = branch_loads(tree, &outcome.joint_rotations).peak_stress;
+        Self {
+            peak_stress: peak.map_or(0.0, |p| p.stress),
+            peak_node: peak.map(|p| p.node),
+            contact_force: Vector3::from(outcome.report.contact_force).norm(),
+        }
+    }
+
+    /// The loads implied by node positions alone (a forward model's
+    /// prediction), for a push held at `push.node`.
+    ///
+    /// Only the joints on the path root → contact node carry a moment (the
+    /// steady state minimises the spring energy, and a joint off the path can
+    /// relax to zero), so only they are read; whatever a model predicts
+    /// elsewhere is noise, and a few millimetres of it on a thin twig would
+    /// read as tens of MPa. Along the path each branch's deformed direction
+    /// gives its rotation: the smallest rotation carrying the branch's rest
+    /// direction, turned by its parent's estimated orientation, onto the
+    /// predicted one. That is the bending rotation θ_b (twist leaves no
+    /// trace in positions and does not bend), so M = K_s |θ_b| and σ =
+    /// 4M/(πr³) as [`branch_loads`]. The contact force F follows from the
+    /// moment balance K_s θ = (g − P_joint) × F at every path joint
+    /// (least squares in angle, g the gripper's hold point: for the slot
+    /// the rest hold point moved by the push, for the pinned model the
+    /// node).
+    pub fn from_positions(
+        tree: &Tree,
+        push: &super::Push,
+        positions: &[nalgebra::Point3<f64>],
+        contact: super::ContactModel,
+    ) -> Self {
+        use nalgebra::{Matrix3, Rotation3};
+        let mut loads = Self {
+            peak_stress: 0.0,
+            peak_node: None,
+            contact_force: 0.0,
+        };
+        if push.node == 0 || push.node >= tree.len() || positions.len() != tree.len() {
+            return loads;
+        }
+        let mut path = tree.path_to_root(push.node);
+        path.reverse(); // root first
+        let grip = match contact {
+            super::ContactModel::Slot => {
+                tree.position(push.node)
+                    - tree.branch_direction(push.node).unwrap_or_else(Vector3::z)
+                        * super::contact::GRIP_OFFSET
+                    + push.vector
+            }
+            super::ContactModel::Pinned => positions[push.node],
+        };
+        let mut orientation = Rotation3::identity();
+        let (mut normal, mut rhs) = (Matrix3::zeros(), Vector3::zeros());
+        for pair in path.windows(2) {
+            let (parent, node) = (pair[0], pair[1]);
+            let Some(branch) = tree.branch(node) else {
+                continue;
+            };
+            let rest = orientation * (tree.position(node) - tree.position(parent));
+            let now = positions[node] - positions[parent];
+            let bend = Rotation3::rotation_between(&rest, &now).unwrap_or_else(|| {
+                // Folded straight back: half a turn about any perpendicular.
+                Rotation3::new(rest.cross(&Vector3::x()).normalize() * std::f64::consts::PI)
+            });
+            let theta = bend.scaled_axis();
+            let moment = theta * branch.stiffness;
+            let stress = 4.0 * moment.norm() / (std::f64::consts::PI * branch.radius.powi(3));
+            if stress > loads.peak_stress {
+                loads.peak_stress = stress;
+                loads.peak_node = Some(node);
+            }
+            orientation = bend * orientation;
+            // K θ = r × F = [r]× F, in least squares over the path's
+            // joints, each equation divided by K: the residual is then an
+            // angle, the quantity a prediction errs in about equally at
+            // every joint (a stiff trunk's tiny predicted rotation error
+            // would otherwise dominate the force).
+            let skew = (grip - positions[parent]).cross_matrix() / branch.stiffness;
+            normal += skew.transpose() * skew;
+            rhs += skew.transpose() * theta;
+        }
+        if let Ok(force) = normal.pseudo_inverse(1e-12) {
+            loads.contact_force = (force * rhs).norm();
+        }
+        loads
+    }
+}

@@ -197,6 +197,7 @@ impl From<PlanError> for ApiError {
         match e {
             PlanError::StartInCollision => ApiError::invalid_field("robot.start", e.to_string()),
             PlanError::NoForwardModel => ApiError::not_ready(e.to_string()),
+            PlanError::PaperNeedsShape(_) => ApiError::invalid_field("strategy", e.to_string()),
             PlanError::Predict(p) => match p.source_as::<InferError>() {
                 Some(e) => e.clone().into(),
                 None => ApiError::internal(format!("inference failed: {p}")),

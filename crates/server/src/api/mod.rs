@@ -14,6 +14,7 @@ pub mod error;
 pub mod identify;
 pub mod json;
 pub mod metrics;
+pub mod objective;
 pub mod observations;
 pub mod plan;
 pub mod predict;

@@ -12,10 +12,11 @@ use super::AppState;
 use super::domain::{self, Warning};
 use super::error::ApiError;
 use super::json::ApiJson;
+use super::objective::{LimitsJson, LoadsJson, ObjectiveJson, limits, objective};
 use super::observations::{IdentifyResponse, ProbeJson, identify_config, probes};
 use super::state::ModelInfo;
 use super::tree_json::TreeJson;
-use super::validate::{MAX_DISTANCE, joints, near_point, targets, vector3};
+use super::validate::{MAX_DISTANCE, joints, near_point, vector3};
 use treemanip_core::graph::Task;
 use treemanip_core::identify::{Noise, identify};
 use treemanip_core::planner::base::{BasePose, BaseRegion};
@@ -70,7 +71,15 @@ pub enum ObstacleJson {
 #[serde(deny_unknown_fields)]
 pub struct PlanRequest {
     pub tree: TreeJson,
-    pub target_positions: Vec<Vec<f64>>,
+    /// What the push is for (shape, clear, reach).
+    #[serde(default)]
+    pub objective: Option<ObjectiveJson>,
+    /// Shorthand for a full `shape` objective.
+    #[serde(default)]
+    pub target_positions: Option<Vec<Vec<f64>>>,
+    /// Loads `model` and `physics` may not exceed (defaults: 40 MPa, 50 N).
+    #[serde(default)]
+    pub limits: Option<LimitsJson>,
     #[serde(default)]
     pub robot: RobotJson,
     #[serde(default)]
@@ -111,10 +120,23 @@ pub struct PlanResponse {
     pub node: Option<usize>,
     pub rank: Option<usize>,
     pub push: Option<[f64; 3]>,
-    /// Predicted max node distance to the target after the push (m).
+    /// `shape`, `clear` or `reach`.
+    pub objective: &'static str,
+    /// The objective's predicted residual after the push (m): shape, the
+    /// largest weighted node distance to the target; clear, the deepest
+    /// intrusion into a region grown by the margin (0 when clear); reach,
+    /// the node's distance to its region (0 inside).
     pub predicted_error: Option<f64>,
-    /// Max node distance to the target if nothing is done (m).
+    /// The same residual if nothing is done (m).
     pub no_action_error: f64,
+    /// The chosen push's loads as the search predicted them (for `model`,
+    /// read from the forward model's positions).
+    pub predicted_loads: Option<LoadsJson>,
+    /// The chosen push's loads as the simulator gives them (`paper`
+    /// included: it reports, never enforces).
+    pub simulated_loads: Option<LoadsJson>,
+    /// The limits enforced (`null` for `paper`).
+    pub limits: Option<treemanip_core::planner::Limits>,
     pub base: BasePose,
     /// The configuration the trajectory starts from.
     pub start: [f64; 6],
@@ -254,7 +276,12 @@ pub async fn plan(
         _ => None,
     };
     let tree = request.tree.to_tree(state.limits.max_nodes)?;
-    let targets = targets(&request.target_positions, &tree)?;
+    let objective = objective(
+        request.objective.as_ref(),
+        request.target_positions.as_deref(),
+        &tree,
+    )?;
+    let load_limits = limits(request.limits.as_ref())?;
     let warnings = domain::check(&policy, &tree, &[], request.allow_out_of_domain)?;
     let max_ms = state.limits.max_plan_budget.as_secs_f64() * 1e3;
     let budget_ms = request.budget_ms.unwrap_or(max_ms.min(2000.0));
@@ -264,7 +291,8 @@ pub async fn plan(
         ))
         .with_details(json!({ "field": "budget_ms", "max": max_ms })));
     }
-    let mut query = Query::new(tree, targets);
+    let mut query = Query::with_objective(tree, objective);
+    query.limits = Some(load_limits);
     query.stance = stance(&request.robot)?;
     query.start = request
         .robot
@@ -329,7 +357,16 @@ fn response(plan: planner::Plan, model: ModelInfo, warnings: Vec<Warning>) -> Pl
     };
     ::metrics::counter!("treemanip_plans_total", "status" => status).increment(1);
     let chosen = plan.plan;
+    let limits = plan.limits;
     PlanResponse {
+        objective: plan.objective,
+        predicted_loads: plan
+            .predicted_loads
+            .map(|l| LoadsJson::new(&l, limits.as_ref())),
+        simulated_loads: plan
+            .simulated_loads
+            .map(|l| LoadsJson::new(&l, limits.as_ref())),
+        limits,
         status,
         strategy: plan.strategy,
         node: chosen.as_ref().map(|p| p.node),

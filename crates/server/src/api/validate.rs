@@ -77,20 +77,27 @@ pub fn check_contact(node: usize, tree: &Tree, field: &str) -> Result<usize, Api
 
 /// Target positions: one finite 3-vector per node.
 pub fn targets(values: &[Vec<f64>], tree: &Tree) -> Result<Vec<Point3<f64>>, ApiError> {
+    targets_at(values, tree, "target_positions")
+}
+
+/// [`targets`] for a request field named `field`.
+pub fn targets_at(
+    values: &[Vec<f64>],
+    tree: &Tree,
+    field: &str,
+) -> Result<Vec<Point3<f64>>, ApiError> {
     if values.len() != tree.len() {
         return Err(ApiError::invalid_argument(format!(
-            "`target_positions` has {} entries but the tree has {} nodes",
+            "`{field}` has {} entries but the tree has {} nodes",
             values.len(),
             tree.len()
         ))
-        .with_details(
-            json!({ "field": "target_positions", "expected": tree.len(), "got": values.len() }),
-        ));
+        .with_details(json!({ "field": field, "expected": tree.len(), "got": values.len() })));
     }
     values
         .iter()
         .enumerate()
-        .map(|(j, v)| vector3(v, &format!("target_positions[{j}]")).map(Point3::from))
+        .map(|(j, v)| vector3(v, &format!("{field}[{j}]")).map(Point3::from))
         .collect()
 }
 

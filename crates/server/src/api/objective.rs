@@ -1,0 +1,265 @@
+//! The JSON of `/v1/plan`'s `objective` and `limits`, checked and turned
+//! into [`treemanip_core::planner::Objective`] and [`Limits`]. What the
+//! objectives mean is in [`treemanip_core::planner::objective`].
+
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use super::error::ApiError;
+use super::validate::{check_contact, near_point, targets_at, vector3};
+use treemanip_core::planner::objective::{
+    DEFAULT_CLEAR_MARGIN, DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS, LoadMargin,
+};
+use treemanip_core::planner::{Limits, Objective, Region};
+use treemanip_core::sim::loads::PushLoads;
+use treemanip_core::tree::Tree;
+
+/// Regions a `clear` objective may list.
+pub const MAX_REGIONS: usize = 16;
+/// Largest region size (a radius or half extent) and margin accepted (m).
+pub const MAX_REGION_SIZE: f64 = 2.0;
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum RegionJson {
+    Sphere {
+        centre: Vec<f64>,
+        radius: f64,
+    },
+    Box {
+        centre: Vec<f64>,
+        half_extents: Vec<f64>,
+        #[serde(default)]
+        yaw: f64,
+    },
+    Capsule {
+        a: Vec<f64>,
+        b: Vec<f64>,
+        radius: f64,
+    },
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ObjectiveJson {
+    Shape {
+        target_positions: Vec<Vec<f64>>,
+        #[serde(default)]
+        weights: Option<Vec<f64>>,
+    },
+    Clear {
+        regions: Vec<RegionJson>,
+        #[serde(default)]
+        margin: Option<f64>,
+    },
+    Reach {
+        node: usize,
+        region: RegionJson,
+    },
+}
+
+/// `limits`: either may be left out for its default.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsJson {
+    /// Pa.
+    #[serde(default)]
+    pub max_stress: Option<f64>,
+    /// N.
+    #[serde(default)]
+    pub max_contact_force: Option<f64>,
+}
+
+fn size(value: f64, field: &str) -> Result<f64, ApiError> {
+    if value.is_finite() && value > 0.0 && value <= MAX_REGION_SIZE {
+        Ok(value)
+    } else {
+        Err(ApiError::invalid_field(
+            field,
+            format!("`{field}` must be positive and at most {MAX_REGION_SIZE} m, not {value}"),
+        ))
+    }
+}
+
+fn region(json: &RegionJson, field: &str) -> Result<Region, ApiError> {
+    Ok(match json {
+        RegionJson::Sphere { centre, radius } => Region::Sphere {
+            centre: near_point(centre, &format!("{field}.centre"))?,
+            radius: size(*radius, &format!("{field}.radius"))?,
+        },
+        RegionJson::Box {
+            centre,
+            half_extents,
+            yaw,
+        } => {
+            let h = vector3(half_extents, &format!("{field}.half_extents"))?;
+            for k in 0..3 {
+                size(h[k], &format!("{field}.half_extents"))?;
+            }
+            if !yaw.is_finite() {
+                return Err(ApiError::invalid_field(
+                    &format!("{field}.yaw"),
+                    format!("`{field}.yaw` must be finite"),
+                ));
+            }
+            Region::Box {
+                centre: near_point(centre, &format!("{field}.centre"))?,
+                half_extents: h,
+                yaw: *yaw,
+            }
+        }
+        RegionJson::Capsule { a, b, radius } => Region::Capsule {
+            a: near_point(a, &format!("{field}.a"))?,
+            b: near_point(b, &format!("{field}.b"))?,
+            radius: size(*radius, &format!("{field}.radius"))?,
+        },
+    })
+}
+
+/// The request's objective: `objective`, or the `target_positions`
+/// shorthand for a full shape (exactly one of them).
+pub fn objective(
+    objective: Option<&ObjectiveJson>,
+    target_positions: Option<&[Vec<f64>]>,
+    tree: &Tree,
+) -> Result<Objective, ApiError> {
+    match (objective, target_positions) {
+        (Some(_), Some(_)) => Err(ApiError::invalid_field(
+            "objective",
+            "give either `objective` or its shorthand `target_positions`, not both",
+        )),
+        (None, None) => Err(ApiError::invalid_field(
+            "objective",
+            "say what the push is for: `objective` (shape, clear or reach) or `target_positions`",
+        )),
+        (None, Some(t)) => Ok(Objective::shape(targets_at(t, tree, "target_positions")?)),
+        (Some(o), None) => from_json(o, tree),
+    }
+}
+
+fn from_json(json: &ObjectiveJson, tree: &Tree) -> Result<Objective, ApiError> {
+    match json {
+        ObjectiveJson::Shape {
+            target_positions,
+            weights,
+        } => {
+            let targets = targets_at(target_positions, tree, "objective.target_positions")?;
+            let weights = match weights {
+                None => None,
+                Some(w) => {
+                    let field = "objective.weights";
+                    if w.len() != tree.len() {
+                        return Err(ApiError::invalid_field(
+                            field,
+                            format!(
+                                "`{field}` has {} entries but the tree has {} nodes",
+                                w.len(),
+                                tree.len()
+                            ),
+                        ));
+                    }
+                    if let Some(j) = w.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+                        return Err(ApiError::invalid_field(
+                            field,
+                            format!("`{field}[{j}]` must be a finite number ≥ 0"),
+                        ));
+                    }
+                    // The root cannot move: weighting only it names no node
+                    // a push can serve.
+                    if w.iter().skip(1).all(|v| *v == 0.0) {
+                        return Err(ApiError::invalid_field(
+                            field,
+                            format!(
+                                "`{field}` weighs no node that can move (every non-root weight is 0)"
+                            ),
+                        ));
+                    }
+                    Some(w.clone())
+                }
+            };
+            Ok(Objective::Shape { targets, weights })
+        }
+        ObjectiveJson::Clear { regions, margin } => {
+            if regions.is_empty() || regions.len() > MAX_REGIONS {
+                return Err(ApiError::invalid_field(
+                    "objective.regions",
+                    format!(
+                        "`objective.regions` must list 1 to {MAX_REGIONS} regions, not {}",
+                        regions.len()
+                    ),
+                ));
+            }
+            let margin = match margin {
+                None => DEFAULT_CLEAR_MARGIN,
+                Some(m) if m.is_finite() && *m >= 0.0 && *m <= MAX_REGION_SIZE => *m,
+                Some(m) => {
+                    return Err(ApiError::invalid_field(
+                        "objective.margin",
+                        format!(
+                            "`objective.margin` must be between 0 and {MAX_REGION_SIZE} m, not {m}"
+                        ),
+                    ));
+                }
+            };
+            let regions = regions
+                .iter()
+                .enumerate()
+                .map(|(k, r)| region(r, &format!("objective.regions[{k}]")))
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok(Objective::Clear { regions, margin })
+        }
+        ObjectiveJson::Reach { node, region: r } => {
+            let node = check_contact(*node, tree, "objective.node")?;
+            Ok(Objective::Reach {
+                node,
+                region: region(r, "objective.region")?,
+            })
+        }
+    }
+}
+
+/// The request's limits, defaults filled in.
+pub fn limits(json: Option<&LimitsJson>) -> Result<Limits, ApiError> {
+    let json = json.cloned().unwrap_or_default();
+    let positive = |v: Option<f64>, default: f64, field: &str| match v {
+        None => Ok(default),
+        Some(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Some(v) => Err(ApiError::invalid_field(
+            field,
+            format!("`{field}` must be a positive number, not {v}"),
+        )
+        .with_details(json!({ "field": field }))),
+    };
+    Ok(Limits {
+        max_stress: positive(json.max_stress, DEFAULT_MAX_STRESS, "limits.max_stress")?,
+        max_contact_force: positive(
+            json.max_contact_force,
+            DEFAULT_MAX_CONTACT_FORCE,
+            "limits.max_contact_force",
+        )?,
+    })
+}
+
+/// A push's loads as the response reports them.
+#[derive(Debug, Clone, Serialize)]
+pub struct LoadsJson {
+    /// Peak bending stress (Pa) and its branch.
+    pub peak_stress: f64,
+    pub peak_node: Option<usize>,
+    /// Contact force magnitude (N).
+    pub contact_force: f64,
+    /// 1 − load / limit per limit (> 0: within); absent without limits.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub margin: Option<LoadMargin>,
+}
+
+impl LoadsJson {
+    pub fn new(loads: &PushLoads, limits: Option<&Limits>) -> Self {
+        Self {
+            peak_stress: loads.peak_stress,
+            peak_node: loads.peak_node,
+            contact_force: loads.contact_force,
+            margin: limits.map(|l| l.margin(loads)),
+        }
+    }
+}
