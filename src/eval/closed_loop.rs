@@ -47,6 +47,8 @@ fn plan_and_execute(
     seed: u64,
 ) -> Option<(Push, Vec<Point3<f64>>)> {
     let mut query = Query::new(model_tree.clone(), targets.to_vec());
+    // As the shape benchmark: no load limits.
+    query.limits = None;
     query.strategy = Strategy::Physics;
     query.budget = Duration::from_secs(2);
     query.stance = Stance::Region(crate::eval::plan::evaluation_region());

@@ -105,6 +105,10 @@ pub fn plan_episode(
 ) -> EpisodeResult {
     let targets = episode.final_positions.clone();
     let mut query = Query::new(tree.clone(), targets.clone());
+    // The paper's benchmark, as the paper ran it: no load limits (its
+    // targets come from unconstrained pushes; `eval tasks` holds pushes to
+    // limits).
+    query.limits = None;
     query.strategy = setting.strategy;
     query.budget = Duration::from_secs(2);
     if setting.region {

@@ -299,6 +299,9 @@ pub struct TaskSummary {
 pub fn summarise(task: &str, setting: &str, results: &[TaskResult]) -> TaskSummary {
     let count = results.len().max(1) as f64;
     let solvable: Vec<&TaskResult> = results.iter().filter(|r| r.oracle_solvable()).collect();
+    // A shape has no success threshold: its rows report the residual.
+    let graded = results.iter().all(|r| r.kind != TaskKind::ShapeMasked);
+    let graded_share = |v: f64| if graded { v } else { f64::NAN };
     let mut times: Vec<f64> = results.iter().map(|r| r.ms).collect();
     times.sort_by(f64::total_cmp);
     TaskSummary {
@@ -306,9 +309,10 @@ pub fn summarise(task: &str, setting: &str, results: &[TaskResult]) -> TaskSumma
         setting: setting.to_owned(),
         tasks: results.len(),
         planned: results.iter().filter(|r| r.planned).count() as f64 / count,
-        success: results.iter().filter(|r| r.success()).count() as f64 / count,
-        success_of_solvable: solvable.iter().filter(|r| r.success()).count() as f64
-            / solvable.len().max(1) as f64,
+        success: graded_share(results.iter().filter(|r| r.success()).count() as f64 / count),
+        success_of_solvable: graded_share(
+            solvable.iter().filter(|r| r.success()).count() as f64 / solvable.len().max(1) as f64,
+        ),
         oracle_solvable: solvable.len(),
         violations: results.iter().filter(|r| r.over_limit).count(),
         residual: results.iter().map(|r| r.executed_residual).sum::<f64>() / count,
@@ -322,20 +326,37 @@ pub fn to_markdown(rows: &[TaskSummary]) -> String {
     let mut out = String::from(
         "| task | setting | tasks | planned % | success % | success % of oracle-solvable (solvable) | executed over a limit | mean residual (cm) | plan ms p50 | p95 |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
+    let pct = |v: f64| {
+        if v.is_nan() {
+            "–".to_owned()
+        } else {
+            format!("{:.1}", 100.0 * v)
+        }
+    };
+    let ms = |v: f64| {
+        if v.is_nan() {
+            "–".to_owned()
+        } else {
+            format!("{v:.0}")
+        }
+    };
     for r in rows {
+        let solvable = if r.success_of_solvable.is_nan() {
+            "–".to_owned()
+        } else {
+            format!("{} ({})", pct(r.success_of_solvable), r.oracle_solvable)
+        };
         out.push_str(&format!(
-            "| {} | {} | {} | {:.1} | {:.1} | {:.1} ({}) | {} | {:.2} | {:.0} | {:.0} |\n",
+            "| {} | {} | {} | {} | {} | {solvable} | {} | {:.2} | {} | {} |\n",
             r.task,
             r.setting,
             r.tasks,
-            100.0 * r.planned,
-            100.0 * r.success,
-            100.0 * r.success_of_solvable,
-            r.oracle_solvable,
+            pct(r.planned),
+            pct(r.success),
             r.violations,
             100.0 * r.residual,
-            r.ms_p50,
-            r.ms_p95,
+            ms(r.ms_p50),
+            ms(r.ms_p95),
         ));
     }
     out

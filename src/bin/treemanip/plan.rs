@@ -16,11 +16,11 @@ use treemanip::eval::plan::{
 };
 use treemanip::eval::plots::rank_histogram_svg;
 use treemanip::infer::models::{ModelSet, ServedModel, SessionLayout};
-use treemanip::planner::{Planner, Query, Stance, Strategy};
+use treemanip::planner::{Objective, Planner, Query, Stance, Strategy};
 use treemanip::robot::ur5;
 use treemanip::sim::{Push, SimConfig, simulate};
 
-use crate::args::{TreePush, parse_numbers, parse_vector};
+use crate::args::{parse_numbers, parse_vector};
 use crate::trees::{NodeSizes, parse_sizes};
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -42,9 +42,30 @@ impl From<StrategyArg> for Strategy {
 
 #[derive(Args)]
 pub struct PlanArgs {
-    /// The tree, and a push whose simulated result is the target shape.
-    #[command(flatten)]
-    target: TreePush,
+    /// A tree URDF file.
+    #[arg(long)]
+    tree: PathBuf,
+    /// With `--push`: a node whose push's simulated result is the target
+    /// shape (the paper's task).
+    #[arg(long, requires = "push", required_unless_present = "objective")]
+    node: Option<usize>,
+    /// The gripper's displacement T (m) `DX,DY,DZ` of that push.
+    #[arg(long, value_parser = parse_vector, allow_hyphen_values = true, requires = "node")]
+    push: Option<Vector3<f64>>,
+    /// Instead of `--node`/`--push`: a JSON file with the objective as
+    /// `/v1/plan` takes it (`{"kind": "clear", "regions": [...]}`, `reach`
+    /// or `shape`; see `docs/tasks.md`).
+    #[arg(long, conflicts_with_all = ["node", "push"])]
+    objective: Option<PathBuf>,
+    /// Bending-stress limit (Pa); default 40 MPa (`docs/tasks.md`).
+    #[arg(long)]
+    max_stress: Option<f64>,
+    /// Contact-force limit (N); default 50 N.
+    #[arg(long)]
+    max_contact_force: Option<f64>,
+    /// Plan without load limits (as the paper did).
+    #[arg(long, conflicts_with_all = ["max_stress", "max_contact_force"])]
+    no_limits: bool,
     /// Start joint configuration (rad), six comma-separated values.
     /// Default: the paper's home pose.
     #[arg(long, value_parser = parse_numbers::<6>, allow_hyphen_values = true)]
@@ -95,16 +116,33 @@ pub(crate) fn gnns(set: &ModelSet) -> (&ServedModel, &ServedModel) {
 }
 
 pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
-    let tree = args.target.load_tree()?;
-    let push = Push {
-        node: args.target.node,
-        vector: args.target.push,
+    let tree = treemanip::tree::urdf::read_file(&args.tree)
+        .with_context(|| format!("cannot load tree {}", args.tree.display()))?;
+    let objective = match (&args.objective, args.node, args.push) {
+        (Some(path), _, _) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read {}", path.display()))?;
+            let json: treemanip::api::objective::ObjectiveJson = serde_json::from_str(&text)
+                .with_context(|| format!("{} is not an objective", path.display()))?;
+            treemanip::api::objective::objective(Some(&json), None, &tree)
+                .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message))?
+        }
+        (None, Some(node), Some(vector)) => {
+            let outcome = simulate(&tree, &Push { node, vector }, &SimConfig::default())
+                .context("the push that makes the target cannot be simulated")?;
+            Objective::shape(outcome.final_positions)
+        }
+        _ => bail!("give `--objective FILE`, or `--node` and `--push` for a target shape"),
     };
-    let outcome = simulate(&tree, &push, &SimConfig::default())
-        .context("the push that makes the target cannot be simulated")?;
+    let limits = treemanip::api::objective::limits(Some(&treemanip::api::objective::LimitsJson {
+        max_stress: args.max_stress,
+        max_contact_force: args.max_contact_force,
+    }))
+    .map_err(|e| anyhow::anyhow!("{}", e.message))?;
     let set = load_models(&args.models_dir)?;
     let (policy, forward) = gnns(&set);
-    let mut query = Query::new(tree, outcome.final_positions);
+    let mut query = Query::with_objective(tree, objective);
+    query.limits = (!args.no_limits).then_some(limits);
     query.strategy = args.strategy.into();
     query.start = args.start;
     query.seed = args.seed;
@@ -141,15 +179,25 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
     }
     for a in &plan.attempts {
         let predicted = a.predicted_error.map_or(String::new(), |e| {
-            format!(", predicted error {:.2} cm", 100.0 * e)
+            format!(", predicted residual {:.2} cm", 100.0 * e)
         });
+        let loads = a
+            .simulated_loads
+            .or(a.predicted_loads)
+            .map_or(String::new(), |l| {
+                format!(
+                    ", peak stress {:.1} MPa, force {:.1} N",
+                    l.peak_stress / 1e6,
+                    l.contact_force
+                )
+            });
         println!(
-            "node {} (policy rank {}), push [{:.3}, {:.3}, {:.3}] m: {:?} in {:.1} ms{predicted}",
+            "node {} (rank {}), push [{:.3}, {:.3}, {:.3}] m: {:?} in {:.1} ms{predicted}{loads}",
             a.node, a.rank, a.push[0], a.push[1], a.push[2], a.outcome, a.ms
         );
     }
     println!(
-        "base at [{:.2}, {:.2}, {:.2}] m, yaw {:.2} rad; no action leaves {:.2} cm; {} predictions",
+        "base at [{:.2}, {:.2}, {:.2}] m, yaw {:.2} rad; no action leaves a residual of {:.2} cm; {} predictions",
         plan.base.position[0],
         plan.base.position[1],
         plan.base.position[2],

@@ -20,16 +20,17 @@
 pub mod base;
 pub mod objective;
 pub mod predict;
+mod query;
 mod run;
 pub mod search;
 pub mod seeds;
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use serde::Serialize;
 
-use crate::robot::collision::{Allowed, CollisionModel, Obstacle, TreeObstacles};
+use crate::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use crate::robot::plan::{Outcome, PushPlan};
 use crate::robot::rrt::{Config, MotionValidator};
 use crate::robot::scene::PlanningScene;
@@ -37,119 +38,15 @@ use crate::robot::{Ur5, ur5};
 use crate::sim::Push;
 use crate::sim::loads::PushLoads;
 use crate::tree::Tree;
-use base::{BasePose, BaseRegion};
+use base::BasePose;
 pub use objective::{Limits, Objective, Region};
 use predict::PhysicsPredictor;
 pub use predict::{Candidate, ContactPolicy, PredictError, Predictor};
+pub use query::{
+    FIXED_EVALUATION_EDGES, Query, REGION_EVALUATION_EDGES, Stance, Strategy, default_evaluations,
+};
 use run::Run;
 use search::{SearchOptions, score, search_pushes, sort_scored};
-
-/// How the push is chosen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum Strategy {
-    /// Search pushes, predicting each with the forward GNN (the default).
-    #[default]
-    Model,
-    /// Search pushes, predicting each with the simulator.
-    Physics,
-    /// The paper's Algorithm 1: the policy's ranking and pushes as they are.
-    Paper,
-}
-
-/// Where the arm stands.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Stance {
-    Fixed(Isometry3<f64>),
-    /// The planner chooses a base pose in this region.
-    Region(BaseRegion),
-}
-
-/// One planning problem.
-#[derive(Debug, Clone)]
-pub struct Query {
-    pub tree: Tree,
-    /// What the push is for.
-    pub objective: Objective,
-    /// Loads `model` and `physics` may not exceed (`None`: no limits;
-    /// [`Query::new`] sets the defaults). `paper` reports, never enforces.
-    pub limits: Option<Limits>,
-    pub stance: Stance,
-    /// Start configuration; `None` is the home pose (or, with a base region,
-    /// the first collision-free tucked pose at the chosen base).
-    pub start: Option<Config>,
-    pub obstacles: Vec<Obstacle>,
-    pub strategy: Strategy,
-    pub budget: Duration,
-    /// Policy-ranked nodes searched (`model`, `physics`).
-    pub max_candidates: usize,
-    /// Push predictions allowed (`model`, `physics`); `None`: the
-    /// default for the tree's size and the stance ([`default_evaluations`]).
-    pub max_evaluations: Option<usize>,
-    pub seed: u64,
-}
-
-impl Query {
-    /// A full-shape query (the paper's) with the default stance,
-    /// strategy, limits and budgets.
-    pub fn new(tree: Tree, targets: Vec<Point3<f64>>) -> Self {
-        Self::with_objective(tree, Objective::shape(targets))
-    }
-
-    /// A query for `objective` with the default stance, strategy, limits
-    /// and budgets.
-    pub fn with_objective(tree: Tree, objective: Objective) -> Self {
-        Self {
-            objective,
-            limits: Some(Limits::default()),
-            stance: Stance::Fixed(ur5::default_base()),
-            start: None,
-            obstacles: Vec::new(),
-            strategy: Strategy::Model,
-            budget: Duration::from_secs(2),
-            max_candidates: DEFAULT_CANDIDATES,
-            max_evaluations: None,
-            seed: 1,
-            tree,
-        }
-    }
-}
-
-/// Push predictions by default for a tree of `n` nodes. A forward pass
-/// costs in proportion to the graph's n(n−1) directed edges (fully
-/// connected), so the default is a budget of edge evaluations (pushes ×
-/// edges), never more than 96 pushes or fewer than 16:
-/// - fixed base, [`FIXED_EVALUATION_EDGES`]: 60 pushes at N = 15, 33 at
-///   N = 20, 21 at N = 25, 16 at N = 30, keeping a plan near 100-150 ms
-///   (10 ms a push at N = 30 on 2 cores). Fewer cost accuracy: on 50 test
-///   episodes `physics` left 7.06 cm with 40 at N = 15 and 6.62 cm with 96;
-/// - base region, [`REGION_EVALUATION_EDGES`]: 96 pushes up to N = 22, 48
-///   at N = 30. With the base free the push chosen is the result (on 30
-///   test episodes, 96 pushes left 2.47 cm and 48 left 2.89 cm), within
-///   the region's latency goal of 1 s.
-pub fn default_evaluations(n: usize, region: bool) -> usize {
-    let edges = (n * n.saturating_sub(1)).max(1);
-    let budget = if region {
-        REGION_EVALUATION_EDGES
-    } else {
-        FIXED_EVALUATION_EDGES
-    };
-    (budget / edges).clamp(16, SearchOptions::default().max_evaluations)
-}
-
-/// Edge evaluations of the default search from a fixed base.
-pub const FIXED_EVALUATION_EDGES: usize = 60 * 15 * 14;
-/// Edge evaluations of the default search with a base region.
-pub const REGION_EVALUATION_EDGES: usize = 48 * 30 * 29;
-
-impl Query {
-    /// The push predictions this query allows.
-    pub fn evaluations(&self) -> usize {
-        self.max_evaluations.unwrap_or_else(|| {
-            default_evaluations(self.tree.len(), matches!(self.stance, Stance::Region(_)))
-        })
-    }
-}
 
 /// Predictions the fallback to the policy's own pushes may make even when
 /// the search spent the budget (the reachable ones, best ranked first).

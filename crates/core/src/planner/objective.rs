@@ -5,13 +5,15 @@
 //! and `reach`, so one search serves them all.
 //!
 //! Branches are capsules: the segment parent → node with the branch's
-//! radius. Distances between branches and regions are parry's exact convex
-//! queries (signed: negative when they overlap).
+//! radius. Distances between branches and regions are signed (negative
+//! when they overlap): exact segment geometry for spheres and capsules,
+//! parry's contact query for boxes.
 
 use nalgebra::{Point3, Vector3};
 use parry3d_f64::math::{Pose, Rot3, Vec3};
 use parry3d_f64::query::contact;
-use parry3d_f64::shape::{Ball, Capsule, Cuboid, Shape};
+use parry3d_f64::query::details::closest_points_segment_segment_with_locations_nD;
+use parry3d_f64::shape::{Ball, Capsule, Cuboid, Segment, Shape};
 use serde::{Deserialize, Serialize};
 
 use super::predict::max_node_error;
@@ -88,32 +90,93 @@ impl Region {
 
 /// A region prepared for many distance queries.
 struct PreparedRegion {
+    region: Region,
     shape: Box<dyn Shape>,
     pose: Pose,
+}
+
+/// The closest points of segments a–b and c–d.
+fn closest_points(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> (Vec3, Vec3) {
+    let (l1, l2) = closest_points_segment_segment_with_locations_nD((&a, &b), (&c, &d));
+    (
+        Segment::new(a, b).point_at(&l1),
+        Segment::new(c, d).point_at(&l2),
+    )
+}
+
+/// A unit vector perpendicular to `axis`.
+fn any_perpendicular(axis: Vec3) -> Vec3 {
+    let helper = if axis.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+    let p = axis.cross(helper);
+    if p.length() > 1e-12 {
+        p.normalize()
+    } else {
+        Vec3::X
+    }
 }
 
 impl PreparedRegion {
     fn new(region: &Region) -> Self {
         let (shape, pose) = region.shape();
-        Self { shape, pose }
+        Self {
+            region: region.clone(),
+            shape,
+            pose,
+        }
     }
 
     /// Signed distance from the capsule a–b of `radius` (negative: depth of
-    /// overlap), or `None` when it is further than `beyond`.
+    /// overlap) and the unit direction from the region toward the branch.
+    /// Spheres and capsules are a segment (or point) grown by a radius, as
+    /// branches are, so their signed distance is exact and has no
+    /// degenerate case (a fruit centred on a branch's axis); boxes use
+    /// parry's contact query.
     fn signed_distance(
         &self,
         a: &Point3<f64>,
         b: &Point3<f64>,
         radius: f64,
-        beyond: f64,
-    ) -> Option<(f64, Vector3<f64>)> {
-        let capsule = Capsule::new(vec3(a), vec3(b), radius);
-        let c = contact(&Pose::IDENTITY, &capsule, &self.pose, &*self.shape, beyond)
-            .ok()
-            .flatten()?;
-        // normal1: from the branch toward the region.
-        let n = c.normal1;
-        Some((c.dist, Vector3::new(n.x, n.y, n.z)))
+    ) -> (f64, Vector3<f64>) {
+        let (a, b) = (vec3(a), vec3(b));
+        let grown = |core_a: Vec3, core_b: Vec3, core_radius: f64| {
+            let (on_branch, on_core) = closest_points(a, b, core_a, core_b);
+            let gap = on_branch - on_core;
+            let away = if gap.length() > 1e-12 {
+                gap.normalize()
+            } else {
+                any_perpendicular(b - a)
+            };
+            (gap.length() - core_radius - radius, away)
+        };
+        let (dist, away) = match &self.region {
+            Region::Sphere { centre, radius: r } => grown(vec3(centre), vec3(centre), *r),
+            Region::Capsule {
+                a: p,
+                b: q,
+                radius: r,
+            } => grown(vec3(p), vec3(q), *r),
+            Region::Box { centre, .. } => {
+                let capsule = Capsule::new(a, b, radius);
+                match contact(
+                    &Pose::IDENTITY,
+                    &capsule,
+                    &self.pose,
+                    &*self.shape,
+                    f64::MAX,
+                )
+                .ok()
+                .flatten()
+                {
+                    // normal1 points from the branch toward the region.
+                    Some(c) => (c.dist, -c.normal1),
+                    None => {
+                        let (on_branch, _) = closest_points(a, b, vec3(centre), vec3(centre));
+                        (0.0, (on_branch - vec3(centre)).normalize_or(Vec3::Z))
+                    }
+                }
+            }
+        };
+        (dist, Vector3::new(away.x, away.y, away.z))
     }
 }
 
@@ -261,8 +324,8 @@ impl Scorer<'_> {
             let deepest = self
                 .regions
                 .iter()
-                .filter_map(|r| r.signed_distance(&a, &b, branch.radius, *margin))
-                .map(|(dist, normal)| (margin - dist, -normal))
+                .map(|r| r.signed_distance(&a, &b, branch.radius))
+                .map(|(dist, away)| (margin - dist, away))
                 .filter(|(depth, _)| *depth > 0.0)
                 .max_by(|x, y| x.0.total_cmp(&y.0));
             if let Some((depth, away)) = deepest {

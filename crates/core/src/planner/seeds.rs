@@ -5,7 +5,7 @@
 //! ancestors, pushed toward the region; for a weighted shape, the worst
 //! listed nodes and their ancestors, pushed toward their targets.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 
 use super::objective::Objective;
 use super::search::{MAX_PUSH, MIN_PUSH};
@@ -111,14 +111,4 @@ fn seed_vector(
         SEED_LENGTH
     };
     Some(d / n * length)
-}
-
-/// The centre of the tree's bounding box (for sanity checks of regions).
-pub fn tree_centre(tree: &Tree) -> Point3<f64> {
-    let (mut lo, mut hi) = (tree.position(0).coords, tree.position(0).coords);
-    for p in tree.positions() {
-        lo = lo.inf(&p.coords);
-        hi = hi.sup(&p.coords);
-    }
-    Point3::from((lo + hi) / 2.0)
 }
