@@ -2,7 +2,9 @@
 //! one request at a time (the latency one user sees), on test episodes of
 //! N = 10, 15, …, 30 (target = the episode's final shape, the request
 //! carries only tree and target), for `paper`, `model` and `physics`, with
-//! the default base and with the evaluation's base region, default budgets.
+//! the default base and with the evaluation's base region, default budgets
+//! and limits; then `clear` objectives (a 4 cm fruit across a branch, as
+//! `eval tasks` poses them) for `model` and `physics`.
 //!
 //!     cargo bench --bench plan_latency
 //!     PLAN_EPISODES=4 cargo bench --bench plan_latency     (per size)
@@ -17,6 +19,8 @@ use treemanip::api::tree_json::TreeJson;
 use treemanip::dataset::Split;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
 use treemanip::eval::plan::percentile;
+use treemanip::eval::tasks::{TaskKind, make_task, task_rng};
+use treemanip::planner::{Objective, Region};
 
 #[allow(dead_code)] // the bench uses part of the tests' helper
 #[path = "../tests/it/common/server.rs"]
@@ -43,28 +47,50 @@ fn main() {
         ..CollectConfig::default()
     };
     let mut requests: Vec<Value> = Vec::new();
+    let mut clear_requests: Vec<Value> = Vec::new();
     for n in [10, 15, 20, 25, 30] {
         let (data, _) = collect_size(Split::Test, n, per_size, &config, &|| {}).unwrap();
-        for e in &data.episodes {
+        for (k, e) in data.episodes.iter().enumerate() {
             let tree = data.tree_of(e);
             let targets: Vec<[f64; 3]> =
                 e.final_positions.iter().map(|p| [p.x, p.y, p.z]).collect();
             requests
                 .push(json!({ "tree": TreeJson::from_tree(tree), "target_positions": targets }));
+            let mut rng = task_rng(7, n * 1000 + k);
+            if let Some(Objective::Clear { regions, .. }) =
+                make_task(TaskKind::Clear, tree, e, &mut rng)
+                && let Some(Region::Sphere { centre, radius }) = regions.first()
+            {
+                clear_requests.push(json!({
+                    "tree": TreeJson::from_tree(tree),
+                    "objective": { "kind": "clear", "regions": [
+                        { "kind": "sphere", "centre": [centre.x, centre.y, centre.z], "radius": radius }
+                    ] },
+                    "limits": { "max_stress": 40e6 },
+                }));
+            }
         }
     }
     let base = treemanip::robot::ur5::default_base().translation.vector;
     let region = json!({ "base_region": {
         "min": [base.x - 0.5, base.y - 0.5, 0.1], "max": [base.x + 0.5, base.y + 0.5, 1.0] } });
     println!(
-        "{:<16} {:>8} {:>9} {:>9} {:>9} {:>9}",
+        "{:<22} {:>8} {:>9} {:>9} {:>9} {:>9}",
         "setting", "planned", "p50 ms", "p95 ms", "max ms", "mean ms"
     );
-    for strategy in ["paper", "model", "physics"] {
+    let runs = ["paper", "model", "physics"]
+        .into_iter()
+        .map(|s| (s, "shape", &requests))
+        .chain(
+            ["model", "physics"]
+                .into_iter()
+                .map(|s| (s, "clear", &clear_requests)),
+        );
+    for (strategy, objective, requests) in runs {
         for (stance, robot) in [("fixed", None), ("region", Some(&region))] {
             let mut ms = Vec::new();
             let mut planned = 0;
-            for request in &requests {
+            for request in requests {
                 let mut body = request.clone();
                 body["strategy"] = json!(strategy);
                 if let Some(robot) = robot {
@@ -78,8 +104,8 @@ fn main() {
             }
             ms.sort_by(f64::total_cmp);
             println!(
-                "{:<16} {:>7.0}% {:>9.1} {:>9.1} {:>9.1} {:>9.1}",
-                format!("{strategy}/{stance}"),
+                "{:<22} {:>7.0}% {:>9.1} {:>9.1} {:>9.1} {:>9.1}",
+                format!("{objective} {strategy}/{stance}"),
                 100.0 * planned as f64 / requests.len() as f64,
                 percentile(&ms, 0.5),
                 percentile(&ms, 0.95),

@@ -12,6 +12,7 @@ export const COLOURS = {
   arm: 0x8a94a6,
   gripper: 0x4a5160,
   selected: 0xd02070,
+  region: 0xc81e1e,
 };
 export const NODE_RADIUS = 0.012; // m, drawn size of a node
 const MIN_BRANCH_RADIUS = 0.003; // m, so thin twigs stay visible

@@ -395,16 +395,50 @@ function showFrame(k) {
   $('phase').textContent = `${phase} · t = ${traj[k].t.toFixed(2)} s`;
 }
 
+/** A fruit (sphere) across the selected node's branch, 1 cm above its middle. */
+function fruitRegion() {
+  const node = state.selected;
+  const parent = state.tree.parents[node];
+  if (parent === null || parent === undefined) throw new Error('select a non-root node for the fruit');
+  const [a, b] = [state.tree.positions[parent], state.tree.positions[node]];
+  const radius = Number($('fruit-radius').value) / 100;
+  if (!(radius > 0)) throw new Error('the fruit radius must be positive');
+  const centre = [0, 1, 2].map((k) => (a[k] + b[k]) / 2 + (k === 2 ? 0.01 : 0));
+  return { kind: 'sphere', centre, radius };
+}
+
+/** The regions of a `clear` objective as translucent shapes. */
+function showRegions(regions) {
+  const group = new THREE.Group();
+  const material = new THREE.MeshBasicMaterial({ color: COLOURS.region, transparent: true, opacity: 0.55, depthWrite: false });
+  for (const r of regions) {
+    if (r.kind !== 'sphere') continue;
+    const ball = new THREE.Mesh(new THREE.SphereGeometry(r.radius, 32, 24), material);
+    ball.position.set(...r.centre);
+    group.add(ball);
+  }
+  setLayer('region', group);
+}
+
 async function plan() {
   requireTree();
-  if (!state.target) throw new Error('set a target first (e.g. “Target = simulated push”)');
+  const clear = $('plan-objective').value === 'clear';
+  if (!clear && !state.target) throw new Error('set a target first (e.g. “Target = simulated push”)');
   $('plan-status').textContent = 'Planning…';
   const request = {
     tree: state.tree,
-    target_positions: state.target,
     strategy: $('plan-strategy').value,
     seed: 1,
   };
+  if (clear) {
+    const region = fruitRegion();
+    request.objective = { kind: 'clear', regions: [region] };
+    showRegions([region]);
+    setLayer('target', null);
+  } else {
+    request.target_positions = state.target;
+    setLayer('region', null);
+  }
   if ($('plan-region').checked) {
     request.robot = { base_region: { min: [-1.0, -0.5, 0.1], max: [0.0, 0.5, 1.0] } };
   }
@@ -443,11 +477,15 @@ async function plan() {
   $('play').disabled = false;
   showFrame(0);
   const err = answer.predicted_error === null ? '–' : cm(answer.predicted_error);
+  const what = answer.objective === 'clear' ? 'deepest intrusion into the fruit' : 'error';
+  const loads = answer.simulated_loads
+    ? ` Held: peak stress ${(answer.simulated_loads.peak_stress / 1e6).toFixed(1)} MPa, force ${answer.simulated_loads.contact_force.toFixed(1)} N.`
+    : '';
   $('plan-status').textContent =
     `Push node ${answer.node} by ${answer.push.map(cm).join(', ')} cm from base ` +
-    `(${answer.base.position.map((v) => v.toFixed(2)).join(', ')}) m: predicted error ${err} cm ` +
+    `(${answer.base.position.map((v) => v.toFixed(2)).join(', ')}) m: predicted ${what} ${err} cm ` +
     `(no action ${cm(answer.no_action_error)} cm); ${configurations.length} waypoints, ` +
-    `${answer.total_ms.toFixed(0)} ms.`;
+    `${answer.total_ms.toFixed(0)} ms.${loads}`;
   document.body.dataset.plan = 'planned';
   play(true);
 }

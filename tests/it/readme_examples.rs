@@ -61,6 +61,7 @@ fn the_curl_examples_run() {
         "\"displacements\"",
         "\"candidates\"",
         "\"attempts\"",
+        "\"objective\":\"clear\"",
     ] {
         assert!(
             stdout.contains(expected),

@@ -164,6 +164,26 @@ def run(url, shots, urdf, urdf_nodes):
             c.ok(arm > 200, f"arm visible ({arm} pixels)")
             c.shot("viewer_plan.png")
 
+        # Flow 4: clear a fruit across node 9's branch (selected in flow 1).
+        Select(browser.find_element(By.ID, "plan-objective")).select_by_value("clear")
+        c.click("plan", timeout=120)
+        c.ok(c.error_text() == "", f"no error shown ({c.error_text()!r})")
+        region = c.js("return window.treemanipViewer.layers().region")
+        c.ok(region == 1, f"the fruit drawn ({region} regions)")
+        c.js("window.treemanipViewer.play(false); window.treemanipViewer.showFrame(0)")
+        red = c.js("return window.treemanipViewer.pixelsNear(arguments[0], 60)", colours["region"])
+        c.ok(red > 50, f"the fruit visible ({red} pixels)")
+        status = browser.find_element(By.ID, "plan-status").text
+        clear_state = c.js("return document.body.dataset.plan")
+        c.ok(
+            (clear_state == "planned" and "intrusion into the fruit" in status)
+            or (clear_state == "no_plan" and "outcomes" in status),
+            f"clear plan reported: {status!r}",
+        )
+        c.js("window.treemanipViewer.showFrame(1e9)")
+        c.shot("viewer_clear.png")
+        Select(browser.find_element(By.ID, "plan-objective")).select_by_value("shape")
+
         if urdf:
             browser.find_element(By.ID, "urdf-file").send_keys(os.path.abspath(urdf))
             c.wait_idle()
