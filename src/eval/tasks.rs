@@ -131,10 +131,16 @@ pub fn make_task(
 
 /// The held state of `push` in the simulator: the objective's residual and
 /// the loads, or `None` when the simulator rejects the push.
-pub fn execute(tree: &Tree, objective: &Objective, push: &Push) -> Option<(f64, PushLoads)> {
+pub fn execute(
+    tree: &Tree,
+    objective: &Objective,
+    push: &Push,
+) -> Option<(f64, Option<f64>, PushLoads)> {
     let out = simulate(tree, push, &SimConfig::default()).ok()?;
+    let scorer = objective.scorer();
     Some((
-        objective.residual(tree, &out.final_positions),
+        scorer.residual(tree, &out.final_positions),
+        scorer.clearance(tree, &out.final_positions),
         PushLoads::of_outcome(tree, &out),
     ))
 }
@@ -184,6 +190,9 @@ pub struct TaskResult {
     pub no_action_residual: f64,
     /// The oracle's residual (arm ignored), m.
     pub oracle_residual: Option<f64>,
+    /// For `clear`: the executed clearance between branches and regions
+    /// (no plan: doing nothing's), m.
+    pub executed_clearance: Option<f64>,
     /// Executed loads (zero without a plan).
     pub executed_stress: f64,
     pub executed_force: f64,
@@ -252,8 +261,9 @@ pub fn run_task(
             },
         )
     });
-    let (executed_residual, loads) = executed.unwrap_or((
+    let (executed_residual, executed_clearance, loads) = executed.unwrap_or((
         no_action,
+        objective.scorer().clearance(tree, tree.positions()),
         PushLoads {
             peak_stress: 0.0,
             peak_node: None,
@@ -265,6 +275,7 @@ pub fn run_task(
         n: tree.len(),
         planned: plan.is_some(),
         executed_residual,
+        executed_clearance,
         no_action_residual: no_action,
         oracle_residual,
         executed_stress: loads.peak_stress,
@@ -292,6 +303,8 @@ pub struct TaskSummary {
     pub violations: usize,
     /// Mean executed residual (m).
     pub residual: f64,
+    /// For `clear`: median executed clearance (m).
+    pub clearance: f64,
     pub ms_p50: f64,
     pub ms_p95: f64,
 }
@@ -316,6 +329,14 @@ pub fn summarise(task: &str, setting: &str, results: &[TaskResult]) -> TaskSumma
         oracle_solvable: solvable.len(),
         violations: results.iter().filter(|r| r.over_limit).count(),
         residual: results.iter().map(|r| r.executed_residual).sum::<f64>() / count,
+        clearance: {
+            let mut c: Vec<f64> = results
+                .iter()
+                .filter_map(|r| r.executed_clearance)
+                .collect();
+            c.sort_by(f64::total_cmp);
+            percentile(&c, 0.5)
+        },
         ms_p50: percentile(&times, 0.5),
         ms_p95: percentile(&times, 0.95),
     }
@@ -324,7 +345,7 @@ pub fn summarise(task: &str, setting: &str, results: &[TaskResult]) -> TaskSumma
 /// The tasks table as Markdown (residuals in cm, times in ms).
 pub fn to_markdown(rows: &[TaskSummary]) -> String {
     let mut out = String::from(
-        "| task | setting | tasks | planned % | success % | success % of oracle-solvable (solvable) | executed over a limit | mean residual (cm) | plan ms p50 | p95 |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| task | setting | tasks | planned % | success % | success % of oracle-solvable (solvable) | executed over a limit | mean residual (cm) | median clearance (cm) | plan ms p50 | p95 |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let pct = |v: f64| {
         if v.is_nan() {
@@ -347,7 +368,7 @@ pub fn to_markdown(rows: &[TaskSummary]) -> String {
             format!("{} ({})", pct(r.success_of_solvable), r.oracle_solvable)
         };
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {solvable} | {} | {:.2} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {solvable} | {} | {:.2} | {} | {} | {} |\n",
             r.task,
             r.setting,
             r.tasks,
@@ -355,6 +376,11 @@ pub fn to_markdown(rows: &[TaskSummary]) -> String {
             pct(r.success),
             r.violations,
             100.0 * r.residual,
+            if r.clearance.is_nan() {
+                "–".to_owned()
+            } else {
+                format!("{:.2}", 100.0 * r.clearance)
+            },
             ms(r.ms_p50),
             ms(r.ms_p95),
         ));

@@ -98,6 +98,15 @@ fn plan_clears_a_fruit_and_reports_loads() {
         assert!((margin - (1.0 - loads.peak_stress / 40e6)).abs() < 1e-9);
         assert!(plan["predicted_loads"]["peak_stress"].as_f64().unwrap() > 0.0);
         let executed = objective.residual(&tree, &out.final_positions);
+        let clearance = plan["clearance"]["simulated"].as_f64().unwrap();
+        let reached = objective
+            .scorer()
+            .clearance(&tree, &out.final_positions)
+            .unwrap();
+        assert!(
+            (clearance - reached).abs() < 1e-9,
+            "{clearance} vs {reached}"
+        );
         assert!(
             executed <= SATISFIED || executed < no_action,
             "{strategy}: {executed}"

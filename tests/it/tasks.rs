@@ -249,6 +249,11 @@ fn physics_clears_a_fruit_within_the_limits() {
             let loads = PushLoads::of_outcome(&tree, &out);
             assert!(limits.allow(&loads), "{loads:?}");
             assert_eq!(plan.simulated_loads, Some(loads));
+            // The clearance reached: at least the margin, and the physics
+            // prediction is the simulation.
+            let clearance = plan.clearance.unwrap();
+            assert!(clearance.simulated.unwrap() >= 0.01 - 1e-6, "{clearance:?}");
+            assert!((clearance.predicted.unwrap() - clearance.simulated.unwrap()).abs() < 1e-6);
         }
         query.strategy = Strategy::Paper;
         assert!(matches!(

@@ -183,12 +183,19 @@ pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
                 .collect();
             bar.finish_and_clear();
             let summary = summarise(kind.name(), &setting, &results);
+            let success = if summary.success.is_nan() {
+                String::new()
+            } else {
+                format!(
+                    "success {:.1} % ({:.1} % of {} oracle-solvable), ",
+                    100.0 * summary.success,
+                    100.0 * summary.success_of_solvable,
+                    summary.oracle_solvable
+                )
+            };
             println!(
-                "{} {setting}: success {:.1} % ({:.1} % of {} oracle-solvable), {} over a limit, residual {:.2} cm, ms p50 {:.0} p95 {:.0}",
+                "{} {setting}: {success}{} over a limit, residual {:.2} cm, ms p50 {:.0} p95 {:.0}",
                 kind.name(),
-                100.0 * summary.success,
-                100.0 * summary.success_of_solvable,
-                summary.oracle_solvable,
                 summary.violations,
                 100.0 * summary.residual,
                 summary.ms_p50,
@@ -208,6 +215,7 @@ pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
                     n: tree.len(),
                     planned: o.is_some(),
                     executed_residual: o.unwrap_or(none),
+                    executed_clearance: None,
                     no_action_residual: none,
                     oracle_residual: *o,
                     executed_stress: f64::NAN,

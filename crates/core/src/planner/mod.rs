@@ -45,7 +45,7 @@ pub use predict::{Candidate, ContactPolicy, PredictError, Predictor};
 pub use query::{
     FIXED_EVALUATION_EDGES, Query, REGION_EVALUATION_EDGES, Stance, Strategy, default_evaluations,
 };
-use run::Run;
+use run::{Run, SimulatedHold};
 use search::{SearchOptions, score, search_pushes, sort_scored};
 
 /// Predictions the fallback to the policy's own pushes may make even when
@@ -124,6 +124,9 @@ pub struct Plan {
     pub simulated_loads: Option<PushLoads>,
     /// The limits enforced (`None` for `paper` or without limits).
     pub limits: Option<Limits>,
+    /// For `clear`, the clearance the chosen push reaches between branches
+    /// and regions (m, negative: overlapping): predicted, and simulated.
+    pub clearance: Option<Clearance>,
     /// Pushes predicted by the search.
     pub evaluations: usize,
     pub attempts: Vec<Attempt>,
@@ -356,7 +359,8 @@ impl Planner {
                         placed,
                         predicted: Some(s.predicted_error),
                         predicted_loads: Some(s.loads),
-                        simulated_loads: simulated,
+                        predicted_clearance: s.clearance,
+                        simulated,
                     });
                     break;
                 }
@@ -447,7 +451,8 @@ impl Planner {
                         placed,
                         predicted: predicted_error,
                         predicted_loads: scored.map(|s| s.loads),
-                        simulated_loads: simulated,
+                        predicted_clearance: scored.and_then(|s| s.clearance),
+                        simulated,
                     });
                     break;
                 }
@@ -464,12 +469,15 @@ impl Planner {
                     break;
                 }
                 if let Some((plan, placed, simulated)) = run.try_push(rank, &push, Some(residual)) {
+                    // Carried out for its simulated residual: that is what
+                    // is reported as predicted too.
                     found = Some(Found {
                         plan,
                         placed,
                         predicted: Some(residual),
-                        predicted_loads: simulated,
-                        simulated_loads: simulated,
+                        predicted_loads: simulated.map(|s| s.loads),
+                        predicted_clearance: simulated.and_then(|s| s.clearance),
+                        simulated,
                     });
                     break;
                 }
@@ -498,7 +506,13 @@ impl Planner {
             predicted_error: found.as_ref().and_then(|f| f.predicted),
             no_action_error,
             predicted_loads: found.as_ref().and_then(|f| f.predicted_loads),
-            simulated_loads: found.as_ref().and_then(|f| f.simulated_loads),
+            simulated_loads: found.as_ref().and_then(|f| f.simulated.map(|s| s.loads)),
+            clearance: found.as_ref().and_then(|f| {
+                matches!(objective, Objective::Clear { .. }).then_some(Clearance {
+                    predicted: f.predicted_clearance,
+                    simulated: f.simulated.and_then(|s| s.clearance),
+                })
+            }),
             limits,
             plan: found.map(|f| f.plan),
             evaluations,
@@ -508,13 +522,21 @@ impl Planner {
     }
 }
 
+/// The clearance a `clear` plan reaches (m; negative: overlapping).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Clearance {
+    pub predicted: Option<f64>,
+    pub simulated: Option<f64>,
+}
+
 /// A push carried out, with what was predicted and simulated of it.
 struct Found {
     plan: PushPlan,
     placed: Placed,
     predicted: Option<f64>,
     predicted_loads: Option<PushLoads>,
-    simulated_loads: Option<PushLoads>,
+    predicted_clearance: Option<f64>,
+    simulated: Option<SimulatedHold>,
 }
 
 /// The policy's ranking as (rank, push).

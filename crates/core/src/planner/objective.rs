@@ -309,6 +309,27 @@ impl Scorer<'_> {
         }
     }
 
+    /// For `clear`: the smallest signed distance between any branch and any
+    /// region (m; negative: overlapping), the clearance reached; `None`
+    /// for other objectives.
+    pub fn clearance(&self, tree: &Tree, positions: &[Point3<f64>]) -> Option<f64> {
+        let Objective::Clear { .. } = self.objective else {
+            return None;
+        };
+        let mut nearest = f64::INFINITY;
+        for (node, branch) in tree.branches_iter() {
+            let Some(parent) = tree.parent(node) else {
+                continue;
+            };
+            for r in &self.regions {
+                let (dist, _) =
+                    r.signed_distance(&positions[parent], &positions[node], branch.radius);
+                nearest = nearest.min(dist);
+            }
+        }
+        Some(nearest)
+    }
+
     /// For `clear`: every branch closer than the margin to a region, its
     /// deepest intrusion over the regions; empty for other objectives.
     pub fn intrusions(&self, tree: &Tree, positions: &[Point3<f64>]) -> Vec<Intrusion> {

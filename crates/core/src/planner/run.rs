@@ -122,7 +122,7 @@ impl Run<'_> {
         rank: usize,
         push: &Push,
         predicted: Option<f64>,
-    ) -> Option<(PushPlan, Placed, Option<PushLoads>)> {
+    ) -> Option<(PushPlan, Placed, Option<SimulatedHold>)> {
         let remaining = self.remaining();
         if remaining.is_zero() {
             self.note(rank, push, Outcome::Skipped, predicted, 0.0);
@@ -143,12 +143,20 @@ impl Run<'_> {
         // far as the push lines get. The whole push first: its loads and
         // what it does for the objective are checked before any arm work.
         let snapshots = PushSnapshots::new(tree, push, self.rest);
-        let simulated = snapshots
-            .final_state()
-            .map(|(positions, loads)| (self.query.objective.residual(tree, positions), loads));
+        let simulated = snapshots.final_state().map(|(positions, loads)| {
+            let scorer = self.query.objective.scorer();
+            (
+                scorer.residual(tree, positions),
+                SimulatedHold {
+                    loads,
+                    clearance: scorer.clearance(tree, positions),
+                },
+            )
+        });
         let verdict = match simulated {
-            Some((_, loads))
-                if self.enforce_limits && self.query.limits.is_some_and(|l| !l.allow(&loads)) =>
+            Some((_, hold))
+                if self.enforce_limits
+                    && self.query.limits.is_some_and(|l| !l.allow(&hold.loads)) =>
             {
                 Some(Outcome::OverLimit)
             }
@@ -166,7 +174,7 @@ impl Run<'_> {
             let ms = started.elapsed().as_secs_f64() * 1e3;
             self.note(rank, push, outcome, predicted, ms);
             if let Some(a) = self.attempts.last_mut() {
-                a.simulated_loads = simulated.map(|s| s.1);
+                a.simulated_loads = simulated.map(|s| s.1.loads);
             }
             return None;
         }
@@ -217,10 +225,18 @@ impl Run<'_> {
         let ms = started.elapsed().as_secs_f64() * 1e3;
         self.note(rank, push, outcome, predicted, ms);
         if let Some(a) = self.attempts.last_mut() {
-            a.simulated_loads = simulated;
+            a.simulated_loads = simulated.map(|s| s.loads);
         }
         result
     }
+}
+
+/// A push's held state as the simulator gives it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimulatedHold {
+    pub loads: PushLoads,
+    /// For `clear`: the clearance reached (m).
+    pub clearance: Option<f64>,
 }
 
 /// Over several bases, report the outcome that got furthest.

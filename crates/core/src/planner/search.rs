@@ -69,6 +69,9 @@ pub struct Scored {
     pub loads: PushLoads,
     /// Whether the loads stay within the limits (always, without limits).
     pub within_limits: bool,
+    /// For `clear`: the predicted clearance between branches and regions
+    /// (m; negative: overlapping).
+    pub clearance: Option<f64>,
 }
 
 impl Scored {
@@ -132,6 +135,7 @@ pub fn score(
             p.map(|p| Scored {
                 push: *push,
                 predicted_error: scorer.residual(tree, &p.positions),
+                clearance: scorer.clearance(tree, &p.positions),
                 within_limits: limits.is_none_or(|l| l.allow(&p.loads)),
                 loads: p.loads,
             })

@@ -137,6 +137,9 @@ pub struct PlanResponse {
     pub simulated_loads: Option<LoadsJson>,
     /// The limits enforced (`null` for `paper`).
     pub limits: Option<treemanip_core::planner::Limits>,
+    /// For `clear`: the clearance the push reaches between branches and
+    /// regions (m, negative: overlapping), predicted and simulated.
+    pub clearance: Option<treemanip_core::planner::Clearance>,
     pub base: BasePose,
     /// The configuration the trajectory starts from.
     pub start: [f64; 6],
@@ -360,6 +363,7 @@ fn response(plan: planner::Plan, model: ModelInfo, warnings: Vec<Warning>) -> Pl
     let limits = plan.limits;
     PlanResponse {
         objective: plan.objective,
+        clearance: plan.clearance,
         predicted_loads: plan
             .predicted_loads
             .map(|l| LoadsJson::new(&l, limits.as_ref())),
