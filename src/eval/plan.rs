@@ -220,25 +220,30 @@ pub fn summarise(method: &str, results: &[EpisodeResult]) -> SettingSummary {
     }
 }
 
+/// A share as a table cell in percent, `–` for NaN (not applicable).
+pub fn percent_cell(v: f64) -> String {
+    if v.is_nan() {
+        "–".to_owned()
+    } else {
+        format!("{:.1}", 100.0 * v)
+    }
+}
+
+/// Milliseconds as a table cell, `–` for NaN.
+pub fn ms_cell(v: f64) -> String {
+    if v.is_nan() {
+        "–".to_owned()
+    } else {
+        format!("{v:.0}")
+    }
+}
+
 /// The table as Markdown (errors in cm, times in ms).
 pub fn to_markdown(rows: &[SettingSummary]) -> String {
     let mut out = String::from(
         "| method | episodes | planned % | helpful % | executed error (cm) | plan ms p50 | p95 | outcomes of the pushes looked at |\n|---|---|---|---|---|---|---|---|\n",
     );
-    let pct = |v: f64| {
-        if v.is_nan() {
-            "–".to_owned()
-        } else {
-            format!("{:.1}", 100.0 * v)
-        }
-    };
-    let ms = |v: f64| {
-        if v.is_nan() {
-            "–".to_owned()
-        } else {
-            format!("{v:.0}")
-        }
-    };
+    let (pct, ms) = (percent_cell, ms_cell);
     for r in rows {
         let outcomes: Vec<String> = r.outcomes.iter().map(|(k, v)| format!("{k} {v}")).collect();
         out.push_str(&format!(

@@ -347,20 +347,7 @@ pub fn to_markdown(rows: &[TaskSummary]) -> String {
     let mut out = String::from(
         "| task | setting | tasks | planned % | success % | success % of oracle-solvable (solvable) | executed over a limit | mean residual (cm) | median clearance (cm) | plan ms p50 | p95 |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
-    let pct = |v: f64| {
-        if v.is_nan() {
-            "–".to_owned()
-        } else {
-            format!("{:.1}", 100.0 * v)
-        }
-    };
-    let ms = |v: f64| {
-        if v.is_nan() {
-            "–".to_owned()
-        } else {
-            format!("{v:.0}")
-        }
-    };
+    let (pct, ms) = (super::plan::percent_cell, super::plan::ms_cell);
     for r in rows {
         let solvable = if r.success_of_solvable.is_nan() {
             "–".to_owned()

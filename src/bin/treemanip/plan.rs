@@ -91,6 +91,27 @@ pub struct PlanArgs {
     json: bool,
 }
 
+/// The test split's episodes, `per_size` of each size, as `dataset
+/// collect` makes them with `seed`.
+pub(crate) fn test_episodes(
+    sizes: &[usize],
+    per_size: usize,
+    seed: u64,
+) -> anyhow::Result<Vec<treemanip::dataset::SizeData>> {
+    let config = CollectConfig {
+        seed,
+        ..CollectConfig::default()
+    };
+    sizes
+        .iter()
+        .map(|&n| {
+            collect_size(Split::Test, n, per_size, &config, &|| {})
+                .map(|(size, _)| size)
+                .with_context(|| format!("simulating test episodes of {n} nodes"))
+        })
+        .collect()
+}
+
 /// The GNN policy and forward model from a models directory.
 pub(crate) fn load_models(dir: &std::path::Path) -> anyhow::Result<ModelSet> {
     let set = ModelSet::load_dir(
@@ -247,16 +268,7 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
         bail!("--per-size must be at least 1");
     }
     let started = Instant::now();
-    let config = CollectConfig {
-        seed: args.seed,
-        ..CollectConfig::default()
-    };
-    let mut data = Vec::new();
-    for &n in &args.sizes.0 {
-        let (size, _) = collect_size(Split::Test, n, args.per_size, &config, &|| {})
-            .with_context(|| format!("simulating test episodes of {n} nodes"))?;
-        data.push(size);
-    }
+    let data = test_episodes(&args.sizes.0, args.per_size, args.seed)?;
     let episodes: Vec<_> = data
         .iter()
         .flat_map(|d| d.episodes.iter().map(move |e| (d.n, d.tree_of(e), e)))

@@ -9,8 +9,6 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::Args;
 use rayon::prelude::*;
-use treemanip::dataset::Split;
-use treemanip::dataset::collect::{CollectConfig, collect_size};
 use treemanip::eval::plots::bar_chart_svg;
 use treemanip::eval::tasks::{
     LoadAccuracy, TaskKind, TaskResult, load_accuracy, make_task, oracle, run_task, summarise,
@@ -18,7 +16,7 @@ use treemanip::eval::tasks::{
 };
 use treemanip::planner::{Limits, Planner, Predictor, Strategy};
 
-use crate::plan::{gnns, load_models};
+use crate::plan::{gnns, load_models, test_episodes};
 use crate::trees::{NodeSizes, parse_sizes};
 
 #[derive(Args)]
@@ -82,16 +80,7 @@ pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
         max_stress: args.max_stress,
         max_contact_force: args.max_contact_force,
     };
-    let config = CollectConfig {
-        seed: args.seed,
-        ..CollectConfig::default()
-    };
-    let mut data = Vec::new();
-    for &n in &args.sizes.0 {
-        let (size, _) = collect_size(Split::Test, n, args.per_size, &config, &|| {})
-            .with_context(|| format!("simulating test episodes of {n} nodes"))?;
-        data.push(size);
-    }
+    let data = test_episodes(&args.sizes.0, args.per_size, args.seed)?;
     let episodes: Vec<_> = data
         .iter()
         .flat_map(|d| d.episodes.iter().map(move |e| (d.tree_of(e), e)))
