@@ -1,9 +1,11 @@
 //! The robot side: the UR5 with its ⊔ gripper, inverse kinematics, collision
 //! checking against the tree, RRT* and the paper's Algorithm 1.
 
+pub mod chain;
 pub mod collision;
 pub mod dh;
 pub mod ik;
+pub mod ik_numeric;
 pub mod plan;
 pub mod rrt;
 pub mod scene;

@@ -1,0 +1,98 @@
+//! Inverse kinematics on random reachable poses (the tip pose of a random
+//! configuration inside the joint limits), per arm: success rate and time
+//! per solve (median, p95), numerical IK for any chain from its URDF and,
+//! for the UR5, the closed form beside it.
+//!
+//!     cargo bench --bench ik                  (10,000 poses per arm)
+//!     IK_POSES=1000 cargo bench --bench ik
+//!
+//! The Panda is read from the URDF the `example-robot-data` package ships
+//! (`pip install -r requirements-dev.txt`); it is left out when that is not
+//! installed. Asserts nothing; run with nothing else busy on the machine.
+
+use std::time::Instant;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use treemanip::eval::plan::percentile;
+use treemanip::robot::chain::Chain;
+use treemanip::robot::ik_numeric::{IkOptions, random_configuration, solve};
+use treemanip::robot::{Ur5, ur5};
+
+fn panda() -> Option<Chain> {
+    let out = std::process::Command::new("python3")
+        .args([
+            "-c",
+            "import sysconfig, os; print(os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share', 'example-robot-data', 'robots', 'panda_description', 'urdf', 'panda.urdf'))",
+        ])
+        .output()
+        .ok()?;
+    let path = String::from_utf8_lossy(&out.stdout).trim().to_owned();
+    let text = std::fs::read_to_string(path).ok()?;
+    Chain::from_urdf_str(&text, Some("panda_link0"), Some("panda_hand")).ok()
+}
+
+fn report(name: &str, times_us: &mut [f64], solved: usize, poses: usize) {
+    times_us.sort_by(f64::total_cmp);
+    println!(
+        "{name:<28} {:>8.2}% {:>10.1} {:>10.1} {:>10.1}",
+        100.0 * solved as f64 / poses as f64,
+        percentile(times_us, 0.5),
+        percentile(times_us, 0.95),
+        times_us.iter().sum::<f64>() / times_us.len().max(1) as f64
+    );
+}
+
+fn main() {
+    let poses: usize = std::env::var("IK_POSES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(10_000);
+    let cpu = treemanip::nn::train::checkpoint::cpu_model();
+    println!("IK on {poses} random reachable poses per arm, CPU {cpu}, one thread");
+    println!(
+        "{:<28} {:>9} {:>10} {:>10} {:>10}",
+        "arm / solver", "success", "p50 µs", "p95 µs", "mean µs"
+    );
+    let ur5_chain = Chain::from_urdf_str(ur5::URDF, Some("base_link"), Some("tool")).unwrap();
+    let mut arms = vec![("UR5", ur5_chain.clone(), ur5::HOME.to_vec())];
+    if let Some(p) = panda() {
+        let reference = p.limits().iter().map(|(lo, hi)| (lo + hi) / 2.0).collect();
+        arms.push(("Franka Panda (7 joints)", p, reference));
+    } else {
+        println!("(Panda left out: example-robot-data is not installed)");
+    }
+    for (name, chain, reference) in &arms {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let goals: Vec<_> = (0..poses)
+            .map(|_| chain.tip_pose(&random_configuration(chain, &mut rng)))
+            .collect();
+        let mut times = Vec::with_capacity(poses);
+        let mut solved = 0;
+        for (k, goal) in goals.iter().enumerate() {
+            let options = IkOptions {
+                seed: k as u64,
+                ..IkOptions::default()
+            };
+            let started = Instant::now();
+            let q = solve(chain, goal, reference, &options);
+            times.push(started.elapsed().as_secs_f64() * 1e6);
+            solved += usize::from(q.is_some());
+        }
+        report(&format!("{name}, numerical"), &mut times, solved, poses);
+        if *name == "UR5" {
+            // The closed form on the same poses (tool frame, base at the
+            // origin), the fast path for UR kinematics.
+            let arm = Ur5::default().with_base(nalgebra::Isometry3::identity());
+            let mut times = Vec::with_capacity(poses);
+            let mut solved = 0;
+            for goal in &goals {
+                let started = Instant::now();
+                let solutions = arm.inverse_kinematics(goal, &ur5::HOME);
+                times.push(started.elapsed().as_secs_f64() * 1e6);
+                solved += usize::from(!solutions.is_empty());
+            }
+            report("UR5, closed form", &mut times, solved, poses);
+        }
+    }
+}
