@@ -22,6 +22,7 @@ mod robot_collision;
 mod robot_model;
 mod robot_plan;
 mod robot_rrt;
+mod robot_timing;
 mod sca;
 mod schemathesis;
 mod server_adversarial;

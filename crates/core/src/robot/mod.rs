@@ -9,6 +9,7 @@ pub mod ik_numeric;
 pub mod plan;
 pub mod rrt;
 pub mod scene;
+pub mod timing;
 pub mod trajectory;
 pub mod ur5;
 

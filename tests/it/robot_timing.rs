@@ -1,0 +1,176 @@
+//! Time-optimal timing for any number of joints (`robot::timing`): the
+//! spline passes its waypoints at rest only at the ends, every limit holds
+//! when checked by finite differences of the positions alone, and the
+//! duration matches TOPP-RA's own implementation (the `toppra` package) on
+//! the same path and limits.
+
+use std::process::Command;
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use treemanip::robot::timing::{SplinePath, TimedPath, time_optimal};
+
+/// `count` random waypoints of `dof` joints, each a step of up to 1 rad.
+fn waypoints(dof: usize, count: usize, seed: u64) -> Vec<Vec<f64>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut q = vec![0.0; dof];
+    let mut out = vec![q.clone()];
+    for _ in 1..count {
+        for v in q.iter_mut() {
+            *v += rng.random_range(-1.0..1.0);
+        }
+        out.push(q.clone());
+    }
+    out
+}
+
+fn limits(dof: usize) -> (Vec<f64>, Vec<f64>) {
+    let v: Vec<f64> = (0..dof).map(|j| 1.0 + 0.3 * j as f64).collect();
+    let a: Vec<f64> = (0..dof).map(|j| 3.0 - 0.2 * j as f64).collect();
+    (v, a)
+}
+
+/// Largest velocity and acceleration over the trajectory, per joint, as
+/// finite differences of positions sampled every `dt`.
+fn finite_difference_peaks(timed: &TimedPath, dof: usize, dt: f64) -> (Vec<f64>, Vec<f64>) {
+    let steps = (timed.duration() / dt).ceil() as usize;
+    let q: Vec<_> = (0..=steps).map(|k| timed.sample(k as f64 * dt).0).collect();
+    let (mut v, mut a) = (vec![0.0f64; dof], vec![0.0f64; dof]);
+    for k in 1..steps {
+        for j in 0..dof {
+            v[j] = v[j].max(((q[k + 1][j] - q[k - 1][j]) / (2.0 * dt)).abs());
+            a[j] = a[j].max(((q[k + 1][j] - 2.0 * q[k][j] + q[k - 1][j]) / (dt * dt)).abs());
+        }
+    }
+    (v, a)
+}
+
+#[test]
+fn the_spline_passes_its_waypoints_and_starts_and_ends_at_rest() {
+    let w = waypoints(7, 6, 1);
+    let path = SplinePath::new(&w).unwrap();
+    for (k, s) in path.knots.iter().enumerate() {
+        let (q, _, _) = path.eval(*s);
+        for j in 0..7 {
+            assert!((q[j] - w[k][j]).abs() < 1e-12);
+        }
+    }
+    assert!(path.eval(0.0).1.norm() < 1e-12);
+    assert!(path.eval(path.length()).1.norm() < 1e-12);
+    // C²: the second derivative is continuous across an inner knot.
+    let s = path.knots[2];
+    let (a, b) = (path.eval(s - 1e-9).2, path.eval(s + 1e-9).2);
+    assert!((a - b).norm() < 1e-6);
+    assert!(SplinePath::new(&[vec![0.0; 3], vec![0.0; 3]]).is_none());
+}
+
+/// On random 6- and 7-joint paths, velocities and accelerations measured
+/// from positions alone (1 ms finite differences) stay within the limits,
+/// and the motion does not stop at inner waypoints.
+#[test]
+fn timed_paths_keep_every_limit() {
+    for (dof, seed) in [(6, 2u64), (7, 3), (7, 4), (6, 5)] {
+        let (vmax, amax) = limits(dof);
+        let path = SplinePath::new(&waypoints(dof, 5, seed)).unwrap();
+        let knot = path.knots[2];
+        let timed = time_optimal(path, &vmax, &amax, 1000).unwrap();
+        let (v, a) = finite_difference_peaks(&timed, dof, 1e-3);
+        let worst = (0..dof)
+            .map(|j| (v[j] / vmax[j]).max(a[j] / amax[j]))
+            .fold(0.0, f64::max);
+        eprintln!("{dof} joints: peak {worst:.4} of a limit");
+        for j in 0..dof {
+            assert!(
+                v[j] <= vmax[j],
+                "joint {j}: velocity {} > {}",
+                v[j],
+                vmax[j]
+            );
+            assert!(
+                a[j] <= amax[j],
+                "joint {j}: acceleration {} > {}",
+                a[j],
+                amax[j]
+            );
+        }
+        let k = timed.s.iter().position(|s| *s >= knot).unwrap();
+        assert!(timed.speed[k] > 0.05, "stops at a waypoint");
+        assert_eq!(timed.speed[0], 0.0);
+        assert_eq!(*timed.speed.last().unwrap(), 0.0);
+    }
+}
+
+/// The same path (a clamped cubic spline through the same waypoints at the
+/// same knots) and limits, timed by the `toppra` package: durations within
+/// 1.1× (both are TOPP-RA; the grid differs).
+#[test]
+fn durations_match_the_toppra_package() {
+    let probe = Command::new("python3")
+        .args(["-c", "import toppra"])
+        .output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        assert!(
+            std::env::var_os("TREEMANIP_REQUIRE_PYTHON").is_none(),
+            "toppra is required (pip install -r requirements-dev.txt)"
+        );
+        eprintln!("skipped: toppra is not installed");
+        return;
+    }
+    let mut cases = Vec::new();
+    for (dof, seed) in [(6, 12u64), (7, 13), (7, 14)] {
+        let (vmax, amax) = limits(dof);
+        let w = waypoints(dof, 6, seed);
+        let path = SplinePath::new(&w).unwrap();
+        let knots = path.knots.clone();
+        let ours = time_optimal(path, &vmax, &amax, 1000).unwrap().duration();
+        cases.push((knots, w, vmax, amax, ours));
+    }
+    let input: Vec<_> = cases
+        .iter()
+        .map(|(k, w, v, a, _)| serde_json::json!({ "ss": k, "qs": w, "v": v, "a": a }))
+        .collect();
+    let script = r#"
+import json, sys, numpy as np, toppra as ta, toppra.constraint as constraint, toppra.algorithm as algo
+ta.setup_logging("WARNING")
+out = []
+for c in json.load(sys.stdin):
+    path = ta.SplineInterpolator(c["ss"], np.array(c["qs"]), bc_type="clamped")
+    v, a = np.array(c["v"]), np.array(c["a"])
+    pc_v = constraint.JointVelocityConstraint(np.stack([-v, v], axis=1))
+    pc_a = constraint.JointAccelerationConstraint(np.stack([-a, a], axis=1))
+    grid = np.linspace(0, path.duration, 1001)
+    inst = algo.TOPPRA([pc_v, pc_a], path, gridpoints=grid, parametrizer="ParametrizeConstAccel")
+    traj = inst.compute_trajectory(0, 0)
+    out.append(traj.duration)
+print(json.dumps(out))
+"#;
+    let mut child = Command::new("python3")
+        .args(["-c", script])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(serde_json::to_string(&input).unwrap().as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let theirs: Vec<f64> = serde_json::from_slice(&out.stdout).unwrap();
+    for ((.., ours), theirs) in cases.iter().zip(theirs) {
+        let ratio = ours / theirs;
+        eprintln!("ours {ours:.4} s, toppra {theirs:.4} s, ratio {ratio:.4}");
+        assert!(
+            (0.95..=1.1).contains(&ratio),
+            "ours {ours} s vs toppra {theirs} s"
+        );
+    }
+}
