@@ -21,6 +21,7 @@ mod robot_chain;
 mod robot_collision;
 mod robot_model;
 mod robot_plan;
+mod robot_ros;
 mod robot_rrt;
 mod robot_timing;
 mod sca;

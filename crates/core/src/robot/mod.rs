@@ -7,6 +7,7 @@ pub mod dh;
 pub mod ik;
 pub mod ik_numeric;
 pub mod plan;
+pub mod ros;
 pub mod rrt;
 pub mod scene;
 pub mod timing;

@@ -1,0 +1,140 @@
+//! Timed trajectories as ROS 2 `trajectory_msgs/msg/JointTrajectory`: the
+//! JSON converts one to one into the message with the `rosbags` package
+//! (ROS 2 message types and CDR without ROS), serialises to CDR and reads
+//! back equal; times increase, and the velocities are the positions'
+//! derivative.
+
+use std::process::Command;
+
+use treemanip::robot::ros::{JointTrajectory, RosDuration};
+use treemanip::robot::timing::{SplinePath, time_optimal};
+
+fn trajectory() -> JointTrajectory {
+    let waypoints = vec![
+        vec![0.0, -0.5, 0.3, -1.0, 0.2, 0.9, 0.0],
+        vec![0.4, -0.2, 0.1, -1.4, 0.5, 1.2, 0.3],
+        vec![0.9, 0.1, -0.3, -1.8, 0.3, 1.6, 0.8],
+    ];
+    let names: Vec<String> = (1..=7).map(|j| format!("panda_joint{j}")).collect();
+    let timed = time_optimal(
+        SplinePath::new(&waypoints).unwrap(),
+        &[2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61],
+        &[15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0],
+        500,
+    )
+    .unwrap();
+    JointTrajectory::sample(&names, &timed, 0.01)
+}
+
+#[test]
+fn durations_round_to_the_nanosecond() {
+    assert_eq!(
+        RosDuration::from_secs(1.25),
+        RosDuration {
+            sec: 1,
+            nanosec: 250_000_000
+        }
+    );
+    assert_eq!(
+        RosDuration::from_secs(-3.0),
+        RosDuration { sec: 0, nanosec: 0 }
+    );
+    assert_eq!(
+        RosDuration::from_secs(f64::NAN),
+        RosDuration { sec: 0, nanosec: 0 }
+    );
+    assert!((RosDuration::from_secs(2.000000001).as_secs() - 2.000000001).abs() < 1e-12);
+}
+
+#[test]
+fn points_are_timed_in_order_with_consistent_velocities() {
+    let traj = trajectory();
+    assert!(traj.points.len() > 10);
+    let first = &traj.points[0];
+    let last = traj.points.last().unwrap();
+    assert_eq!(first.time_from_start, RosDuration { sec: 0, nanosec: 0 });
+    assert!(
+        first
+            .velocities
+            .iter()
+            .chain(&last.velocities)
+            .all(|v| v.abs() < 1e-9)
+    );
+    for pair in traj.points.windows(2) {
+        let (a, b) = (&pair[0], &pair[1]);
+        let dt = b.time_from_start.as_secs() - a.time_from_start.as_secs();
+        assert!(dt > 0.0);
+        for j in 0..7 {
+            // The mean of the two velocities is the positions' slope to
+            // second order.
+            let slope = (b.positions[j] - a.positions[j]) / dt;
+            let mean = (a.velocities[j] + b.velocities[j]) / 2.0;
+            assert!((slope - mean).abs() < 0.02, "joint {j}: {slope} vs {mean}");
+        }
+    }
+}
+
+#[test]
+fn the_json_is_a_ros2_joint_trajectory() {
+    let probe = Command::new("python3")
+        .args(["-c", "import rosbags"])
+        .output();
+    if !probe.is_ok_and(|o| o.status.success()) {
+        assert!(
+            std::env::var_os("TREEMANIP_REQUIRE_PYTHON").is_none(),
+            "rosbags is required (pip install -r requirements-dev.txt)"
+        );
+        eprintln!("skipped: rosbags is not installed");
+        return;
+    }
+    let json = serde_json::to_string(&trajectory()).unwrap();
+    let script = r#"
+import json, sys, numpy as np
+from rosbags.typesys import Stores, get_typestore
+ts = get_typestore(Stores.ROS2_HUMBLE)
+T = ts.types
+data = json.load(sys.stdin)
+msg = T['trajectory_msgs/msg/JointTrajectory'](
+    header=T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](sec=0, nanosec=0), frame_id=''),
+    joint_names=data['joint_names'],
+    points=[T['trajectory_msgs/msg/JointTrajectoryPoint'](
+        positions=np.array(p['positions'], dtype=np.float64),
+        velocities=np.array(p['velocities'], dtype=np.float64),
+        accelerations=np.array(p['accelerations'], dtype=np.float64),
+        effort=np.array([], dtype=np.float64),
+        time_from_start=T['builtin_interfaces/msg/Duration'](**p['time_from_start']))
+        for p in data['points']])
+cdr = ts.serialize_cdr(msg, msg.__msgtype__)
+back = ts.deserialize_cdr(cdr, msg.__msgtype__)
+assert back.joint_names == data['joint_names']
+assert len(back.points) == len(data['points'])
+for p, q in zip(back.points, data['points']):
+    for field in ('positions', 'velocities', 'accelerations'):
+        assert list(getattr(p, field)) == q[field], field
+    assert (p.time_from_start.sec, p.time_from_start.nanosec) == (q['time_from_start']['sec'], q['time_from_start']['nanosec'])
+print(len(cdr), len(back.points))
+"#;
+    let mut child = Command::new("python3")
+        .args(["-c", script])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(json.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let answer = String::from_utf8_lossy(&out.stdout);
+    let points: usize = answer.split_whitespace().nth(1).unwrap().parse().unwrap();
+    assert_eq!(points, trajectory().points.len());
+}
