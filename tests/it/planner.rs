@@ -36,8 +36,101 @@ fn episode(n: usize, seed: u64) -> (Tree, Vec<Point3<f64>>) {
     }
 }
 
+/// The controller's trajectory: velocity-continuous, within every joint's
+/// velocity and acceleration limit by finite differences of the positions
+/// alone, the approach collision-free (its blended samples too), and the
+/// push exactly straight at constant orientation and constant speed in its
+/// middle, by the URDF chain's forward kinematics (code apart from the
+/// UR5 model the planner uses).
+fn check_execution(plan: &Plan, query: &Query) {
+    use treemanip::robot::chain::Chain;
+    use treemanip::robot::ur5::{MAX_ACCELERATION, MAX_VELOCITY, URDF};
+    let Some(p) = &plan.plan else { return };
+    let e = p
+        .execution
+        .as_ref()
+        .expect("a planned push has its controller trajectory");
+    let points = &e.joint_trajectory.points;
+    let t: Vec<f64> = points.iter().map(|p| p.time_from_start.as_secs()).collect();
+    assert!(t.windows(2).all(|w| w[1] > w[0]), "time increases");
+    assert_eq!(points[0].positions, plan.start.to_vec());
+    assert!(points[0].velocities.iter().all(|v| *v == 0.0));
+    for k in 1..points.len() - 1 {
+        let (h1, h2) = (t[k] - t[k - 1], t[k + 1] - t[k]);
+        for i in 0..6 {
+            let (a, b, c) = (
+                points[k - 1].positions[i],
+                points[k].positions[i],
+                points[k + 1].positions[i],
+            );
+            let v = (b - a) / h1;
+            assert!(
+                v.abs() <= MAX_VELOCITY[i] * (1.0 + 1e-6),
+                "joint {i}: {v} rad/s at {k}"
+            );
+            let acc = ((c - b) / h2 - (b - a) / h1) * 2.0 / (h1 + h2);
+            assert!(
+                acc.abs() <= MAX_ACCELERATION[i] * (1.0 + 1e-3),
+                "joint {i}: {acc} rad/s² at {k}"
+            );
+            // Velocity-continuous: the reported velocities change no faster
+            // than the acceleration limit allows.
+            let dv = points[k + 1].velocities[i] - points[k].velocities[i];
+            assert!(
+                dv.abs() <= MAX_ACCELERATION[i] * h2 * 1.05 + 1e-6,
+                "velocity jumps at {k} (push {}..{}): joint {i} by {dv} in {h2} s, {:?} -> {:?}",
+                e.push_start_point,
+                e.push_end_point,
+                points[k].velocities,
+                points[k + 1].velocities
+            );
+        }
+    }
+    let chain = Chain::from_urdf_str(URDF, Some("base_link"), Some("tool")).unwrap();
+    let base = plan.base.isometry();
+    let tool = |k: usize| base * chain.tip_pose(&points[k].positions);
+    let (first, last) = (tool(e.push_start_point), tool(e.push_end_point));
+    let travel = last.translation.vector - first.translation.vector;
+    assert!((travel.norm() - (p.push.norm() + APPROACH_OFFSET)).abs() < 1e-6);
+    for k in e.push_start_point..=e.push_end_point {
+        let pose = tool(k);
+        assert!(pose.rotation.angle_to(&first.rotation) < 1e-6, "tool turns");
+        let offset = pose.translation.vector - first.translation.vector;
+        let across = offset - travel.normalize() * offset.dot(&travel.normalize());
+        assert!(
+            across.norm() < 1e-6,
+            "push leaves its line by {}",
+            across.norm()
+        );
+    }
+    // Constant tool speed in the middle of the push.
+    let mid = (e.push_start_point + e.push_end_point) / 2;
+    let speed = (tool(mid + 1).translation.vector - tool(mid).translation.vector).norm()
+        / (t[mid + 1] - t[mid]);
+    assert!(
+        (speed - query.execution.push_speed).abs() < 1e-3 || speed < query.execution.push_speed,
+        "{speed} m/s"
+    );
+    // Hold, release and retreat end where the approach began.
+    assert!(t[e.push_end_point + 1] - t[e.push_end_point] >= query.execution.hold_s - 1e-9);
+    assert_eq!(points.last().unwrap().positions, plan.start.to_vec());
+    // The approach, blended or not, clears the tree and the obstacles.
+    let arm = CollisionModel::new(Ur5::default().with_base(base));
+    let rest = TreeObstacles::new(&query.tree).with_obstacles(&query.obstacles);
+    let near = Allowed {
+        gripper_branches: std::iter::once(p.node)
+            .chain(query.tree.children(p.node).iter().copied())
+            .collect(),
+    };
+    for point in &points[..=e.push_start_point] {
+        let q: [f64; 6] = point.positions.clone().try_into().unwrap();
+        assert_eq!(arm.check(&q, &rest, &near), None, "approach collides");
+    }
+}
+
 /// Checks everything a returned plan promises.
 fn check_plan(plan: &Plan, query: &Query) {
+    check_execution(plan, query);
     let Some(p) = &plan.plan else { return };
     let tree = &query.tree;
     for point in &p.trajectory {

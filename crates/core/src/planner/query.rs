@@ -11,6 +11,7 @@ use super::base::BaseRegion;
 use super::objective::{Limits, Objective};
 use super::search::SearchOptions;
 use crate::robot::collision::Obstacle;
+use crate::robot::execution::ExecutionOptions;
 use crate::robot::rrt::Config;
 use crate::robot::ur5;
 use crate::tree::Tree;
@@ -58,6 +59,9 @@ pub struct Query {
     /// default for the tree's size and the stance ([`default_evaluations`]).
     pub max_evaluations: Option<usize>,
     pub seed: u64,
+    /// How the controller's trajectory is timed (hold, push speed,
+    /// scaling).
+    pub execution: ExecutionOptions,
 }
 
 impl Query {
@@ -81,6 +85,7 @@ impl Query {
             max_candidates: DEFAULT_CANDIDATES,
             max_evaluations: None,
             seed: 1,
+            execution: ExecutionOptions::default(),
             tree,
         }
     }

@@ -132,6 +132,7 @@ impl Run<'_> {
         let tree = &self.query.tree;
         let mut options = PlanOptions::default();
         options.rrt.seed = self.query.seed;
+        options.execution = self.query.execution;
         let full_iterations = options.rrt.max_iterations;
         let placements = self.placements(push);
         let mut outcome = if placements.is_empty() {

@@ -4,6 +4,7 @@
 pub mod chain;
 pub mod collision;
 pub mod dh;
+pub mod execution;
 pub mod ik;
 pub mod ik_numeric;
 pub mod plan;

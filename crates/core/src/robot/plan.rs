@@ -37,6 +37,7 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 use serde::Serialize;
 
 use super::collision::{Allowed, CollisionModel, TreeObstacles};
+use super::execution::{Execution, ExecutionOptions, execution};
 use super::rrt::{Config, MotionValidator, RrtError, RrtStarOptions, distance, rrt_star, shortcut};
 use super::scene::PlanningScene;
 use super::trajectory::{TimedPoint, time_parameterize};
@@ -69,6 +70,9 @@ pub struct PlanOptions {
     pub budget: Option<Duration>,
     /// Sampling interval of the timed approach (s).
     pub dt: f64,
+    /// How the controller's trajectory (approach, push, hold, release,
+    /// retreat) is timed.
+    pub execution: ExecutionOptions,
 }
 
 impl Default for PlanOptions {
@@ -85,6 +89,7 @@ impl Default for PlanOptions {
             shortcut_attempts: 100,
             budget: Some(Duration::from_secs(2)),
             dt: 0.05,
+            execution: ExecutionOptions::default(),
         }
     }
 }
@@ -131,6 +136,8 @@ pub struct PushPlan {
     /// Index of the trajectory point where the push begins (the tool at the
     /// pre-contact pose).
     pub push_start_index: usize,
+    /// The whole held push timed for a controller (ROS 2 JointTrajectory).
+    pub execution: Option<Execution>,
 }
 
 /// Tool poses for the pre-contact of a push (both slot orientations), or
@@ -310,12 +317,21 @@ pub fn execute(
         t += step_time.max(joint_time);
         trajectory.push(TimedPoint { t, q: w[1] });
     }
+    let execution = execution(
+        &model.robot,
+        &approach_scene,
+        &smooth,
+        &direction,
+        travel,
+        &options.execution,
+    );
     Ok(PushPlan {
         node,
         rank: 0,
         push: push.vector,
         trajectory,
         push_start_index,
+        execution,
     })
 }
 

@@ -53,8 +53,8 @@ pub struct JointTrajectory {
 }
 
 impl JointTrajectory {
-    /// `timed` sampled every `period` seconds, its last point included
-    /// (exactly at rest at the end).
+    /// `timed` sampled evenly, at most `period` seconds apart, its last
+    /// point included (exactly at rest at the end).
     pub fn sample(joint_names: &[String], timed: &TimedPath, period: f64) -> Self {
         let duration = timed.duration();
         let period = if period.is_finite() && period > 0.0 {
@@ -65,7 +65,7 @@ impl JointTrajectory {
         let steps = (duration / period).ceil().max(1.0) as usize;
         let points = (0..=steps)
             .map(|k| {
-                let t = (k as f64 * period).min(duration);
+                let t = duration * k as f64 / steps as f64;
                 let (q, v, a) = timed.sample(t);
                 JointTrajectoryPoint {
                     positions: q.as_slice().to_vec(),

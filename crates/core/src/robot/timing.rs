@@ -99,10 +99,18 @@ impl SplinePath {
         let (a, b) = (self.knots[i + 1] - s, s - self.knots[i]);
         let (m0, m1) = (&self.second[i], &self.second[i + 1]);
         let (p0, p1) = (&self.points[i], &self.points[i + 1]);
-        let q = m0 * (a.powi(3) / (6.0 * h))
-            + m1 * (b.powi(3) / (6.0 * h))
-            + (p0 - m0 * (h * h / 6.0)) * (a / h)
-            + (p1 - m1 * (h * h / 6.0)) * (b / h);
+        // At a knot the waypoint itself, bit for bit (a trajectory begins
+        // exactly at its start configuration).
+        let q = if b == 0.0 {
+            p0.clone()
+        } else if a == 0.0 {
+            p1.clone()
+        } else {
+            m0 * (a.powi(3) / (6.0 * h))
+                + m1 * (b.powi(3) / (6.0 * h))
+                + (p0 - m0 * (h * h / 6.0)) * (a / h)
+                + (p1 - m1 * (h * h / 6.0)) * (b / h)
+        };
         let dq = -m0 * (a * a / (2.0 * h)) + m1 * (b * b / (2.0 * h)) + (p1 - p0) / h
             - (m1 - m0) * (h / 6.0);
         let ddq = m0 * (a / h) + m1 * (b / h);

@@ -53,6 +53,7 @@ pub enum ObjectiveJson {
         margin: Option<f64>,
     },
     Reach {
+        #[serde(deserialize_with = "super::json::integer::usize")]
         node: usize,
         region: RegionJson,
     },

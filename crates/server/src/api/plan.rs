@@ -22,6 +22,7 @@ use treemanip_core::identify::{Noise, identify};
 use treemanip_core::planner::base::{BasePose, BaseRegion};
 use treemanip_core::planner::{self, Attempt, Predictor, Query, Stance, Strategy};
 use treemanip_core::robot::collision::Obstacle;
+use treemanip_core::robot::execution::ExecutionOptions;
 use treemanip_core::robot::trajectory::TimedPoint;
 use treemanip_core::robot::ur5::{self, JOINT_NAMES};
 
@@ -110,6 +111,17 @@ pub struct PlanRequest {
     /// Noise of `observations` (defaults: 3 mm, 5 % of force).
     #[serde(default)]
     pub observation_noise: Option<Noise>,
+    /// Seconds the push is held before the release (default 2).
+    #[serde(default)]
+    pub hold_s: Option<f64>,
+    /// Tool speed along the push (m/s, default 0.05).
+    #[serde(default)]
+    pub push_speed: Option<f64>,
+    /// Shares (0, 1] of the joints' velocity and acceleration limits.
+    #[serde(default)]
+    pub velocity_scaling: Option<f64>,
+    #[serde(default)]
+    pub acceleration_scaling: Option<f64>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -148,6 +160,14 @@ pub struct PlanResponse {
     pub joint_names: [&'static str; 6],
     pub trajectory: Vec<TimedPoint>,
     pub push_start_index: Option<usize>,
+    /// The whole held push (approach, push, hold, release, retreat) as a
+    /// ROS 2 `trajectory_msgs/JointTrajectory`, velocity-continuous and
+    /// within the joints' limits.
+    pub joint_trajectory: Option<treemanip_core::robot::ros::JointTrajectory>,
+    /// Indices of `joint_trajectory`'s first and last point of the
+    /// straight push.
+    pub push_start_point: Option<usize>,
+    pub push_end_point: Option<usize>,
     pub evaluations: usize,
     pub attempts: Vec<Attempt>,
     pub total_ms: f64,
@@ -257,6 +277,44 @@ fn obstacles(list: &[ObstacleJson]) -> Result<Vec<Obstacle>, ApiError> {
         .collect()
 }
 
+/// The request's timing of the controller's trajectory.
+fn execution_options(request: &PlanRequest) -> Result<ExecutionOptions, ApiError> {
+    let mut options = ExecutionOptions::default();
+    let in_range = |value: Option<f64>, lo: f64, hi: f64, field: &str| match value {
+        None => Ok(None),
+        Some(v) if v.is_finite() && v > lo && v <= hi => Ok(Some(v)),
+        Some(v) => Err(invalid(
+            field,
+            format!("`{field}` must be in ({lo}, {hi}], not {v}"),
+        )),
+    };
+    if let Some(v) = in_range(request.push_speed, 0.0, 0.5, "push_speed")? {
+        options.push_speed = v;
+    }
+    if let Some(v) = in_range(request.velocity_scaling, 0.0, 1.0, "velocity_scaling")? {
+        options.velocity_scaling = v;
+    }
+    if let Some(v) = in_range(
+        request.acceleration_scaling,
+        0.0,
+        1.0,
+        "acceleration_scaling",
+    )? {
+        options.acceleration_scaling = v;
+    }
+    match request.hold_s {
+        None => {}
+        Some(v) if v.is_finite() && (0.0..=600.0).contains(&v) => options.hold_s = v,
+        Some(v) => {
+            return Err(invalid(
+                "hold_s",
+                format!("`hold_s` must be between 0 and 600 s, not {v}"),
+            ));
+        }
+    }
+    Ok(options)
+}
+
 /// A request count within `1..=max`, or its default.
 fn count(value: Option<u64>, default: usize, max: usize, field: &str) -> Result<usize, ApiError> {
     match value {
@@ -320,6 +378,7 @@ pub async fn plan(
         "max_evaluations",
     )?);
     query.seed = request.seed.unwrap_or(1);
+    query.execution = execution_options(&request)?;
     let config = identify_config(request.observation_noise, None, "observation_")?;
     let observations = probes(&query.tree, &request.observations, &config, "observations")?;
     let info = ModelInfo::of(&policy, &state);
@@ -383,6 +442,18 @@ fn response(plan: planner::Plan, model: ModelInfo, warnings: Vec<Warning>) -> Pl
         start_chosen: plan.start_chosen,
         joint_names: JOINT_NAMES,
         push_start_index: chosen.as_ref().map(|p| p.push_start_index),
+        push_start_point: chosen
+            .as_ref()
+            .and_then(|p| p.execution.as_ref())
+            .map(|e| e.push_start_point),
+        push_end_point: chosen
+            .as_ref()
+            .and_then(|p| p.execution.as_ref())
+            .map(|e| e.push_end_point),
+        joint_trajectory: chosen
+            .as_ref()
+            .and_then(|p| p.execution.as_ref())
+            .map(|e| e.joint_trajectory.clone()),
         trajectory: chosen.map(|p| p.trajectory).unwrap_or_default(),
         evaluations: plan.evaluations,
         attempts: plan.attempts,

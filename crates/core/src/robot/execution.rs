@@ -1,0 +1,285 @@
+//! The whole held push as one timed trajectory a controller executes:
+//! approach (its waypoints blended by a spline when the blended path is
+//! collision-free, timed by TOPP-RA), the straight push at a constant tool
+//! speed with smooth ramps (inverse kinematics at every sample, so the tool
+//! moves exactly along the line at constant orientation), a hold, the
+//! release (the push backward) and the retreat (the approach backward).
+//! Sampled every `period` into a ROS 2 [`JointTrajectory`].
+
+use nalgebra::{Isometry3, Translation3, Vector3};
+
+use super::Ur5;
+use super::ros::{JointTrajectory, JointTrajectoryPoint, RosDuration};
+use super::rrt::{Config, MotionValidator};
+use super::timing::{SplinePath, TimedPath, time_optimal};
+use super::ur5::{JOINT_NAMES, MAX_ACCELERATION, MAX_VELOCITY};
+
+/// How the trajectory is timed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExecutionOptions {
+    /// Tool speed along the push (m/s).
+    pub push_speed: f64,
+    /// Tool acceleration of the push's ramps (m/s²).
+    pub push_acceleration: f64,
+    /// Time the push is held (s).
+    pub hold_s: f64,
+    /// Shares (0, 1] of the joints' velocity and acceleration limits, as
+    /// MoveIt's scaling factors.
+    pub velocity_scaling: f64,
+    pub acceleration_scaling: f64,
+    /// Sampling period of the trajectory (s).
+    pub period: f64,
+}
+
+impl Default for ExecutionOptions {
+    fn default() -> Self {
+        Self {
+            push_speed: super::plan::PUSH_SPEED,
+            push_acceleration: 0.25,
+            hold_s: 2.0,
+            velocity_scaling: 1.0,
+            acceleration_scaling: 1.0,
+            period: 0.01,
+        }
+    }
+}
+
+/// The executed trajectory and where its straight push begins and ends.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Execution {
+    pub joint_trajectory: JointTrajectory,
+    /// Index of the push's first point (the tool at the pre-contact pose).
+    pub push_start_point: usize,
+    /// Index of the push's last point (the push held from there).
+    pub push_end_point: usize,
+    /// Whether the approach's waypoints were blended (otherwise the arm
+    /// stops at each: the blended path collided).
+    pub blended: bool,
+}
+
+/// Joint-space chord between collision checks of a blended path (rad).
+const BLEND_CHECK_STEP: f64 = 0.02;
+
+fn point(q: &[f64], v: &[f64], a: &[f64], t: f64) -> JointTrajectoryPoint {
+    JointTrajectoryPoint {
+        positions: q.to_vec(),
+        velocities: v.to_vec(),
+        accelerations: a.to_vec(),
+        time_from_start: RosDuration::from_secs(t),
+    }
+}
+
+/// The approach timed: blended if the blended path is free in `scene`,
+/// otherwise a rest-to-rest straight segment per waypoint pair.
+fn approach_timing(
+    waypoints: &[Config],
+    scene: &dyn MotionValidator,
+    vmax: &[f64],
+    amax: &[f64],
+) -> Option<(Vec<TimedPath>, bool)> {
+    let as_vec: Vec<Vec<f64>> = waypoints.iter().map(|q| q.to_vec()).collect();
+    let spline = SplinePath::new(&as_vec)?;
+    let steps = (spline.length() / BLEND_CHECK_STEP).ceil().max(1.0) as usize;
+    let samples: Vec<Config> = (0..=steps)
+        .map(|k| {
+            let (q, _, _) = spline.eval(spline.length() * k as f64 / steps as f64);
+            std::array::from_fn(|i| q[i])
+        })
+        .collect();
+    let free = samples.iter().all(|q| scene.config_valid(q))
+        && samples.windows(2).all(|w| scene.edge_valid(&w[0], &w[1]));
+    if free {
+        return Some((vec![time_optimal(spline, vmax, amax, 400)?], true));
+    }
+    let segments = as_vec
+        .windows(2)
+        .filter_map(SplinePath::new)
+        .map(|s| time_optimal(s, vmax, amax, 100))
+        .collect::<Option<Vec<_>>>()?;
+    Some((segments, false))
+}
+
+/// Distance along the push at time t of a trapezoid (accelerate, cruise,
+/// decelerate) over `length` at `speed` and `acceleration`; and its total
+/// duration.
+fn push_profile(length: f64, speed: f64, acceleration: f64) -> (f64, impl Fn(f64) -> f64) {
+    let ramp = speed / acceleration;
+    let (ramp, cruise_speed) = if acceleration * ramp * ramp > length {
+        // Too short to reach the speed: a triangle.
+        let r = (length / acceleration).sqrt();
+        (r, acceleration * r)
+    } else {
+        (ramp, speed)
+    };
+    let cruise = (length - acceleration * ramp * ramp) / cruise_speed;
+    let total = 2.0 * ramp + cruise;
+    let at = move |t: f64| {
+        let t = t.clamp(0.0, total);
+        if t < ramp {
+            0.5 * acceleration * t * t
+        } else if t <= ramp + cruise {
+            0.5 * acceleration * ramp * ramp + cruise_speed * (t - ramp)
+        } else {
+            let r = total - t;
+            length - 0.5 * acceleration * r * r
+        }
+    };
+    (total, at)
+}
+
+/// The tool's straight push sampled every `period`: positions by inverse
+/// kinematics of the tool pose at each sample (nearest the previous
+/// sample), velocities and accelerations by central differences of them.
+/// `None` when IK leaves the branch it started on.
+fn push_samples(
+    arm: &Ur5,
+    start: &Config,
+    direction: &Vector3<f64>,
+    length: f64,
+    speed: f64,
+    acceleration: f64,
+    period: f64,
+) -> Option<Vec<(f64, Config)>> {
+    let from = arm.tool_pose(start);
+    let (total, at) = push_profile(length, speed, acceleration);
+    // Evenly spaced, at most `period` apart (an end sample squeezed in
+    // after the last full period would spoil the differences).
+    let steps = (total / period).ceil().max(1.0) as usize;
+    let mut out = Vec::with_capacity(steps + 1);
+    let mut previous = *start;
+    for k in 0..=steps {
+        let t = total * k as f64 / steps as f64;
+        let pose = Isometry3::from_parts(
+            Translation3::from(from.translation.vector + direction * at(t)),
+            from.rotation,
+        );
+        let q = if k == 0 {
+            *start
+        } else {
+            *arm.inverse_kinematics(&pose, &previous).first()?
+        };
+        if (0..6).any(|i| (q[i] - previous[i]).abs() > 0.2) {
+            return None;
+        }
+        previous = q;
+        out.push((t, q));
+    }
+    Some(out)
+}
+
+/// The whole trajectory: approach along `approach` (collision-checked in
+/// `scene` when blended), push `length` along `direction` from the
+/// approach's end, hold, release, retreat.
+pub fn execution(
+    arm: &Ur5,
+    scene: &dyn MotionValidator,
+    approach: &[Config],
+    direction: &Vector3<f64>,
+    length: f64,
+    options: &ExecutionOptions,
+) -> Option<Execution> {
+    let vmax: Vec<f64> = MAX_VELOCITY
+        .iter()
+        .map(|v| v * options.velocity_scaling)
+        .collect();
+    let amax: Vec<f64> = MAX_ACCELERATION
+        .iter()
+        .map(|a| a * options.acceleration_scaling)
+        .collect();
+    let (segments, blended) = approach_timing(approach, scene, &vmax, &amax)?;
+    let period = options.period;
+    // Approach, sampled.
+    let mut points: Vec<JointTrajectoryPoint> = Vec::new();
+    let mut t0 = 0.0;
+    // (time, point) of the approach, kept to run it backward at the end.
+    let mut approach_samples: Vec<(f64, JointTrajectoryPoint)> = Vec::new();
+    for timed in &segments {
+        let d = timed.duration();
+        let steps = (d / period).ceil().max(1.0) as usize;
+        let first = usize::from(!approach_samples.is_empty());
+        for k in first..=steps {
+            let t = d * k as f64 / steps as f64;
+            let (q, v, a) = timed.sample(t);
+            let p = point(q.as_slice(), v.as_slice(), a.as_slice(), t0 + t);
+            approach_samples.push((t0 + t, p));
+        }
+        t0 += d;
+    }
+    points.extend(approach_samples.iter().map(|(_, p)| p.clone()));
+    let push_start_point = points.len() - 1;
+    let start = approach.last()?;
+    // The push, slowed until every joint keeps its limits.
+    let mut speed = options.push_speed;
+    let mut acceleration = options.push_acceleration;
+    let samples = loop {
+        let samples = push_samples(arm, start, direction, length, speed, acceleration, period)?;
+        let mut worst: f64 = 0.0;
+        for w in samples.windows(3) {
+            let dt = w[1].0 - w[0].0;
+            let dt2 = w[2].0 - w[1].0;
+            if dt <= 0.0 || dt2 <= 0.0 {
+                continue;
+            }
+            for i in 0..6 {
+                let v = (w[2].1[i] - w[0].1[i]) / (dt + dt2);
+                let a = ((w[2].1[i] - w[1].1[i]) / dt2 - (w[1].1[i] - w[0].1[i]) / dt) * 2.0
+                    / (dt + dt2);
+                worst = worst.max(v.abs() / vmax[i]).max(a.abs() / amax[i]);
+            }
+        }
+        if worst <= 1.0 {
+            break samples;
+        }
+        if speed < 1e-3 {
+            return None;
+        }
+        speed /= worst.max(1.05);
+        acceleration /= worst.max(1.05);
+    };
+    let derivatives = |k: usize| -> (Vec<f64>, Vec<f64>) {
+        if k == 0 || k + 1 >= samples.len() {
+            return (vec![0.0; 6], vec![0.0; 6]);
+        }
+        let (a, b, c) = (&samples[k - 1], &samples[k], &samples[k + 1]);
+        let (h1, h2) = (b.0 - a.0, c.0 - b.0);
+        let v = (0..6).map(|i| (c.1[i] - a.1[i]) / (h1 + h2)).collect();
+        let acc = (0..6)
+            .map(|i| ((c.1[i] - b.1[i]) / h2 - (b.1[i] - a.1[i]) / h1) * 2.0 / (h1 + h2))
+            .collect();
+        (v, acc)
+    };
+    let push_time = samples.last()?.0;
+    for (k, (t, q)) in samples.iter().enumerate().skip(1) {
+        let (v, a) = derivatives(k);
+        points.push(point(q, &v, &a, t0 + t));
+    }
+    let push_end_point = points.len() - 1;
+    let held = samples.last()?.1;
+    let zero = [0.0; 6];
+    let mut t = t0 + push_time + options.hold_s.max(0.0);
+    if options.hold_s > 0.0 {
+        points.push(point(&held, &zero, &zero, t));
+    }
+    // Release: the push backward in time.
+    for (k, (tk, q)) in samples.iter().enumerate().rev().skip(1) {
+        let (v, a) = derivatives(k);
+        let v: Vec<f64> = v.iter().map(|x| -x).collect();
+        points.push(point(q, &v, &a, t + (push_time - tk)));
+    }
+    t += push_time;
+    // Retreat: the approach backward in time.
+    let total = t0;
+    for (ta, p) in approach_samples.iter().rev().skip(1) {
+        let v: Vec<f64> = p.velocities.iter().map(|x| -x).collect();
+        points.push(point(&p.positions, &v, &p.accelerations, t + (total - ta)));
+    }
+    Some(Execution {
+        joint_trajectory: JointTrajectory {
+            joint_names: JOINT_NAMES.iter().map(|s| (*s).to_owned()).collect(),
+            points,
+        },
+        push_start_point,
+        push_end_point,
+        blended,
+    })
+}
