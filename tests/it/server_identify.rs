@@ -281,3 +281,52 @@ fn a_global_stiffness_factor_is_neither_refused_nor_seen() {
         }
     }
 }
+
+/// With `robot`, only pushes the arm can make are proposed: each passes
+/// the planner's reach test from that base, and an arm standing 3 m away
+/// gets none.
+#[test]
+fn probes_respect_the_arms_reach() {
+    use treemanip::planner::{Planner, Stance};
+    let server = Server::start(&[
+        "--models-dir",
+        crate::common::temp_dir("id-reach").to_str().unwrap(),
+    ]);
+    let (nominal, _) = trees();
+    let ask = |robot: Value| {
+        let (status, answer) = server.json(
+            "POST",
+            "/v1/identify/probes",
+            &json!({ "tree": prior_tree(&nominal), "count": 4, "robot": robot }),
+        );
+        assert_eq!(status, 200, "{answer}");
+        answer["probes"].as_array().unwrap().clone()
+    };
+    let near = ask(json!({ "base": [-0.5, 0.0, 0.1] }));
+    assert!(!near.is_empty());
+    let planner = Planner::default();
+    let stance = Stance::Fixed(nalgebra::Isometry3::translation(-0.5, 0.0, 0.1));
+    let reachable = planner.reach_test(&nominal, &[], &stance, None);
+    for p in &near {
+        let v = &p["push"];
+        let push = Push {
+            node: p["contact_node"].as_u64().unwrap() as usize,
+            vector: nalgebra::Vector3::new(
+                v[0].as_f64().unwrap(),
+                v[1].as_f64().unwrap(),
+                v[2].as_f64().unwrap(),
+            ),
+        };
+        assert!(reachable(&push), "{p}");
+    }
+    assert!(ask(json!({ "base": [3.0, 3.0, 0.1] })).is_empty());
+    let (status, e) = server.json(
+        "POST",
+        "/v1/identify/probes",
+        &json!({ "tree": prior_tree(&nominal), "robot": { "base": [0.0, 0.0, 99.0] } }),
+    );
+    assert_eq!(
+        (status, e["error"]["details"]["field"].as_str()),
+        (422, Some("robot.base"))
+    );
+}

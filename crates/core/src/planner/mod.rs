@@ -181,6 +181,36 @@ impl Planner {
         arm
     }
 
+    /// The cheap reach test the push search prunes with, for pushes on
+    /// `tree` by the arm at `stance` (a base region: any of its proposed
+    /// placements) from `start` (default: home): IK of the pre-contact
+    /// pose, joint limits, a collision-free pre-contact configuration and a
+    /// straight push. For proposing only pushes the arm can make (probes).
+    pub fn reach_test<'a>(
+        &'a self,
+        tree: &'a Tree,
+        obstacles: &[crate::robot::collision::Obstacle],
+        stance: &'a Stance,
+        start: Option<Config>,
+    ) -> impl Fn(&Push) -> bool + Sync + 'a {
+        let rest = TreeObstacles::new(tree).with_obstacles(obstacles);
+        let fixed = match stance {
+            Stance::Fixed(base) => Some(self.placed_at(base)),
+            Stance::Region(_) => None,
+        };
+        let start = start.unwrap_or(ur5::HOME);
+        move |push: &Push| match (&fixed, stance) {
+            (Some(arm), _) => crate::robot::plan::reach(arm, tree, &rest, push, &start).is_ok(),
+            (None, Stance::Region(region)) => {
+                base::proposals(region, tree, push).into_iter().any(|pose| {
+                    let arm = self.placed_at(&pose.isometry());
+                    crate::robot::plan::reach(&arm, tree, &rest, push, &ur5::HOME).is_ok()
+                })
+            }
+            (None, Stance::Fixed(_)) => false,
+        }
+    }
+
     /// Plans `query` with the contact `policy` and, for `model`, the
     /// `forward` model.
     pub fn plan(

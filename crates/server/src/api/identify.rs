@@ -77,6 +77,10 @@ pub struct ProbesRequest {
     /// Prior spreads on ln K_s (defaults: 0.5 per branch, 1.0 overall).
     #[serde(default)]
     pub prior: Option<Prior>,
+    /// Where the arm stands (as `/v1/plan` takes it): only pushes it can
+    /// make are proposed. Without it, every push is a candidate.
+    #[serde(default)]
+    pub robot: Option<super::plan::RobotJson>,
 }
 
 fn default_count() -> usize {
@@ -124,6 +128,18 @@ pub async fn propose(
         push_length: length,
         contact: request.contact,
     };
+    let arm = match &request.robot {
+        None => None,
+        Some(robot) => {
+            let start = robot
+                .start
+                .as_deref()
+                .map(|q| super::validate::joints(q, "robot.start"))
+                .transpose()?;
+            Some((super::plan::stance(robot)?, start))
+        }
+    };
+    let planner = state.planner.clone();
     let response = state
         .run_blocking("/v1/identify/probes", move || {
             let posterior = if observed.is_empty() {
@@ -131,7 +147,13 @@ pub async fn propose(
             } else {
                 run_identify(&tree, &observed, &config).posterior
             };
-            let chosen = choose_probes(&tree, &posterior, &ask, &config, &|_| true);
+            let chosen = match &arm {
+                None => choose_probes(&tree, &posterior, &ask, &config, &|_| true),
+                Some((stance, start)) => {
+                    let reachable = planner.reach_test(&tree, &[], stance, *start);
+                    choose_probes(&tree, &posterior, &ask, &config, &reachable)
+                }
+            };
             Ok(ProbesResponse {
                 probes: chosen
                     .iter()

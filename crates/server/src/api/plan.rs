@@ -183,7 +183,7 @@ fn invalid(field: &str, message: impl Into<String>) -> ApiError {
     ApiError::invalid_field(field, message)
 }
 
-fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
+pub(crate) fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
     match (&robot.base, &robot.base_region) {
         (Some(_), Some(_)) => Err(invalid(
             "robot.base_region",
