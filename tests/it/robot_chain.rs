@@ -126,27 +126,8 @@ print(json.dumps(out))
 "#,
         path = path.to_str().unwrap()
     );
-    let mut child = Command::new("python3")
-        .args(["-c", &script])
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    use std::io::Write;
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(serde_json::to_string(&configurations).unwrap().as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let theirs: Vec<(Vec<f64>, Vec<Vec<f64>>)> = serde_json::from_slice(&out.stdout).unwrap();
+    let out = crate::common::python_json(&script, &serde_json::to_value(&configurations).unwrap());
+    let theirs: Vec<(Vec<f64>, Vec<Vec<f64>>)> = serde_json::from_slice(&out).unwrap();
     for (q, (t, r)) in configurations.iter().zip(theirs) {
         let ours = chain.tip_pose(q);
         let p = ours.translation.vector;

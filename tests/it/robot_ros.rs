@@ -4,8 +4,6 @@
 //! back equal; times increase, and the velocities are the positions'
 //! derivative.
 
-use std::process::Command;
-
 use treemanip::robot::ros::{JointTrajectory, RosDuration};
 use treemanip::robot::timing::{SplinePath, time_optimal};
 
@@ -76,18 +74,10 @@ fn points_are_timed_in_order_with_consistent_velocities() {
 
 #[test]
 fn the_json_is_a_ros2_joint_trajectory() {
-    let probe = Command::new("python3")
-        .args(["-c", "import rosbags"])
-        .output();
-    if !probe.is_ok_and(|o| o.status.success()) {
-        assert!(
-            std::env::var_os("TREEMANIP_REQUIRE_PYTHON").is_none(),
-            "rosbags is required (pip install -r requirements-dev.txt)"
-        );
-        eprintln!("skipped: rosbags is not installed");
+    if !crate::common::python_has("rosbags") {
         return;
     }
-    let json = serde_json::to_string(&trajectory()).unwrap();
+    let json = serde_json::to_value(trajectory()).unwrap();
     let script = r#"
 import json, sys, numpy as np
 from rosbags.typesys import Stores, get_typestore
@@ -114,27 +104,8 @@ for p, q in zip(back.points, data['points']):
     assert (p.time_from_start.sec, p.time_from_start.nanosec) == (q['time_from_start']['sec'], q['time_from_start']['nanosec'])
 print(len(cdr), len(back.points))
 "#;
-    let mut child = Command::new("python3")
-        .args(["-c", script])
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    use std::io::Write;
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(json.as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let answer = String::from_utf8_lossy(&out.stdout);
+    let out = crate::common::python_json(script, &json);
+    let answer = String::from_utf8_lossy(&out);
     let points: usize = answer.split_whitespace().nth(1).unwrap().parse().unwrap();
     assert_eq!(points, trajectory().points.len());
 }

@@ -4,8 +4,6 @@
 //! duration matches TOPP-RA's own implementation (the `toppra` package) on
 //! the same path and limits.
 
-use std::process::Command;
-
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use treemanip::robot::timing::{SplinePath, TimedPath, time_optimal};
@@ -105,15 +103,7 @@ fn timed_paths_keep_every_limit() {
 /// 1.1× (both are TOPP-RA; the grid differs).
 #[test]
 fn durations_match_the_toppra_package() {
-    let probe = Command::new("python3")
-        .args(["-c", "import toppra"])
-        .output();
-    if !probe.is_ok_and(|o| o.status.success()) {
-        assert!(
-            std::env::var_os("TREEMANIP_REQUIRE_PYTHON").is_none(),
-            "toppra is required (pip install -r requirements-dev.txt)"
-        );
-        eprintln!("skipped: toppra is not installed");
+    if !crate::common::python_has("toppra") {
         return;
     }
     let mut cases = Vec::new();
@@ -144,27 +134,8 @@ for c in json.load(sys.stdin):
     out.append(traj.duration)
 print(json.dumps(out))
 "#;
-    let mut child = Command::new("python3")
-        .args(["-c", script])
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    use std::io::Write;
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(serde_json::to_string(&input).unwrap().as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let theirs: Vec<f64> = serde_json::from_slice(&out.stdout).unwrap();
+    let out = crate::common::python_json(script, &serde_json::Value::from(input));
+    let theirs: Vec<f64> = serde_json::from_slice(&out).unwrap();
     for ((.., ours), theirs) in cases.iter().zip(theirs) {
         let ratio = ours / theirs;
         eprintln!("ours {ours:.4} s, toppra {theirs:.4} s, ratio {ratio:.4}");
