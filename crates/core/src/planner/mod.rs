@@ -27,7 +27,7 @@ pub mod seeds;
 
 use std::time::Instant;
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::Isometry3;
 use serde::Serialize;
 
 use crate::robot::collision::{Allowed, CollisionModel, TreeObstacles};
@@ -47,6 +47,7 @@ pub use query::{
 };
 use run::{Run, SimulatedHold};
 use search::{SearchOptions, score, search_pushes, sort_scored};
+use seeds::{interleave, ranked};
 
 /// Predictions the fallback to the policy's own pushes may make even when
 /// the search spent the budget (the reachable ones, best ranked first).
@@ -567,36 +568,4 @@ struct Found {
     predicted_loads: Option<PushLoads>,
     predicted_clearance: Option<f64>,
     simulated: Option<SimulatedHold>,
-}
-
-/// The policy's ranking as (rank, push).
-fn ranked(
-    policy: &dyn ContactPolicy,
-    tree: &Tree,
-    targets: &[Point3<f64>],
-) -> Result<Vec<(usize, Push)>, PredictError> {
-    Ok(policy
-        .rank(tree, targets)?
-        .iter()
-        .map(|c| {
-            let push = Push {
-                node: c.node,
-                vector: Vector3::from(c.push),
-            };
-            (c.rank, push)
-        })
-        .collect())
-}
-
-/// `a` and `b` taken in turns, each node once.
-fn interleave(a: &[Push], b: &[Push]) -> Vec<Push> {
-    let mut out: Vec<Push> = Vec::new();
-    for k in 0..a.len().max(b.len()) {
-        for p in [a.get(k), b.get(k)].into_iter().flatten() {
-            if !out.iter().any(|q| q.node == p.node) {
-                out.push(*p);
-            }
-        }
-    }
-    out
 }

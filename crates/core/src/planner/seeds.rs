@@ -5,9 +5,10 @@
 //! ancestors, pushed toward the region; for a weighted shape, the worst
 //! listed nodes and their ancestors, pushed toward their targets.
 
-use nalgebra::Vector3;
+use nalgebra::{Point3, Vector3};
 
 use super::objective::Objective;
+use super::predict::{ContactPolicy, PredictError};
 use super::search::{MAX_PUSH, MIN_PUSH};
 use crate::sim::Push;
 use crate::tree::Tree;
@@ -111,4 +112,36 @@ fn seed_vector(
         SEED_LENGTH
     };
     Some(d / n * length)
+}
+
+/// The policy's ranking as (rank, push).
+pub(super) fn ranked(
+    policy: &dyn ContactPolicy,
+    tree: &Tree,
+    targets: &[Point3<f64>],
+) -> Result<Vec<(usize, Push)>, PredictError> {
+    Ok(policy
+        .rank(tree, targets)?
+        .iter()
+        .map(|c| {
+            let push = Push {
+                node: c.node,
+                vector: Vector3::from(c.push),
+            };
+            (c.rank, push)
+        })
+        .collect())
+}
+
+/// `a` and `b` taken in turns, each node once.
+pub(super) fn interleave(a: &[Push], b: &[Push]) -> Vec<Push> {
+    let mut out: Vec<Push> = Vec::new();
+    for k in 0..a.len().max(b.len()) {
+        for p in [a.get(k), b.get(k)].into_iter().flatten() {
+            if !out.iter().any(|q| q.node == p.node) {
+                out.push(*p);
+            }
+        }
+    }
+    out
 }
