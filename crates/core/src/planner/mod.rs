@@ -46,7 +46,7 @@ pub use query::{
     FIXED_EVALUATION_EDGES, Query, REGION_EVALUATION_EDGES, Stance, Strategy, default_evaluations,
 };
 use run::{Run, SimulatedHold};
-use search::{SearchOptions, score, search_pushes, sort_scored};
+use search::{SearchOptions, score, search_pushes};
 use seeds::{interleave, ranked};
 
 /// Predictions the fallback to the policy's own pushes may make even when
@@ -203,10 +203,7 @@ impl Planner {
         move |push: &Push| match (&fixed, stance) {
             (Some(arm), _) => crate::robot::plan::reach(arm, tree, &rest, push, &start).is_ok(),
             (None, Stance::Region(region)) => {
-                base::proposals(region, tree, push).into_iter().any(|pose| {
-                    let arm = self.placed_at(&pose.isometry());
-                    crate::robot::plan::reach(&arm, tree, &rest, push, &ur5::HOME).is_ok()
-                })
+                run::reach_in_region(self, region, tree, &rest, push).is_ok()
             }
             (None, Stance::Fixed(_)) => false,
         }
@@ -309,7 +306,6 @@ impl Planner {
         };
         let no_action_error = objective.residual(tree, tree.positions());
         let mut evaluations = 0;
-        // (plan, placement, predicted residual, predicted loads, simulated loads)
         let mut found: Option<Found> = None;
         let physics = PhysicsPredictor;
         let predictor: Option<&dyn Predictor> = match query.strategy {
@@ -344,16 +340,7 @@ impl Planner {
                     // Sorted after every push within the limits: only the
                     // ones reached here, none of those left, are noted.
                     if over_limit < MAX_OVER_LIMIT_NOTED {
-                        run.note(
-                            rank,
-                            &s.push,
-                            Outcome::OverLimit,
-                            Some(s.predicted_error),
-                            0.0,
-                        );
-                        if let Some(a) = run.attempts.last_mut() {
-                            a.predicted_loads = Some(s.loads);
-                        }
+                        run.note(rank, &s.push, Outcome::OverLimit, Some(s), 0.0);
                     }
                     over_limit += 1;
                     continue;
@@ -362,16 +349,10 @@ impl Planner {
                     break;
                 }
                 if s.predicted_error >= no_action_error {
-                    run.note(
-                        rank,
-                        &s.push,
-                        Outcome::NotHelpful,
-                        Some(s.predicted_error),
-                        0.0,
-                    );
+                    run.note(rank, &s.push, Outcome::NotHelpful, Some(s), 0.0);
                     break;
                 }
-                let tried = run.try_push(rank, &s.push, Some(s.predicted_error));
+                let tried = run.try_push(rank, &s.push, Some(s));
                 // A push passed over on its simulation alone cost no arm
                 // work: it counts against the simulated checks only.
                 checked += 1;
@@ -381,16 +362,11 @@ impl Planner {
                 ) {
                     executed += 1;
                 }
-                if let Some(a) = run.attempts.last_mut() {
-                    a.predicted_loads = Some(s.loads);
-                }
                 if let Some((plan, placed, simulated)) = tried {
                     found = Some(Found {
                         plan,
                         placed,
-                        predicted: Some(s.predicted_error),
-                        predicted_loads: Some(s.loads),
-                        predicted_clearance: s.clearance,
+                        predicted: Some(*s),
                         simulated,
                     });
                     break;
@@ -434,17 +410,15 @@ impl Planner {
                     scored
                 }
             };
-            // Predicted ones in the search's order, the rest as ranked.
+            // Predicted ones in the search's order, the rest as ranked (a
+            // stable sort).
             let mut order: Vec<usize> = (0..proposals.len()).collect();
-            if predictor.is_some() {
-                let mut known: Vec<search::Scored> = predicted.iter().flatten().copied().collect();
-                sort_scored(&mut known, objective);
-                order.sort_by_key(|&k| {
-                    predicted[k]
-                        .and_then(|s| known.iter().position(|x| *x == s))
-                        .unwrap_or(usize::MAX)
-                });
-            }
+            order.sort_by(|&a, &b| match (&predicted[a], &predicted[b]) {
+                (Some(x), Some(y)) => search::compare(x, y, objective),
+                (Some(_), None) => std::cmp::Ordering::Less,
+                (None, Some(_)) => std::cmp::Ordering::Greater,
+                (None, None) => std::cmp::Ordering::Equal,
+            });
             for k in order {
                 let (rank, push) = &proposals[k];
                 let scored = predicted[k];
@@ -464,25 +438,16 @@ impl Planner {
                         None
                     };
                     if let Some(outcome) = outcome {
-                        run.note(*rank, push, outcome, Some(s.predicted_error), 0.0);
-                        if let Some(a) = run.attempts.last_mut() {
-                            a.predicted_loads = Some(s.loads);
-                        }
+                        run.note(*rank, push, outcome, Some(&s), 0.0);
                         continue;
                     }
                 }
-                let predicted_error = scored.map(|s| s.predicted_error);
-                let tried = run.try_push(*rank, push, predicted_error);
-                if let Some(a) = run.attempts.last_mut() {
-                    a.predicted_loads = scored.map(|s| s.loads);
-                }
-                if let Some((plan, placed, simulated)) = tried {
+                if let Some((plan, placed, simulated)) = run.try_push(*rank, push, scored.as_ref())
+                {
                     found = Some(Found {
                         plan,
                         placed,
-                        predicted: predicted_error,
-                        predicted_loads: scored.map(|s| s.loads),
-                        predicted_clearance: scored.and_then(|s| s.clearance),
+                        predicted: scored,
                         simulated,
                     });
                     break;
@@ -493,21 +458,20 @@ impl Planner {
             // Nothing met the objective: the missed push that came closest
             // in its simulation, if it helps at all.
             let mut missed = std::mem::take(&mut run.missed);
-            missed.sort_by(|a, b| a.2.total_cmp(&b.2));
+            missed.sort_by(|a, b| a.1.predicted_error.total_cmp(&b.1.predicted_error));
             run.verify = false;
-            for (rank, push, residual) in missed.into_iter().take(2) {
-                if residual >= no_action_error {
+            for (rank, seen) in missed.into_iter().take(2) {
+                if seen.predicted_error >= no_action_error {
                     break;
                 }
-                if let Some((plan, placed, simulated)) = run.try_push(rank, &push, Some(residual)) {
-                    // Carried out for its simulated residual: that is what
-                    // is reported as predicted too.
+                // Carried out for what its simulation gave: that is what is
+                // reported as predicted too.
+                if let Some((plan, placed, simulated)) = run.try_push(rank, &seen.push, Some(&seen))
+                {
                     found = Some(Found {
                         plan,
                         placed,
-                        predicted: Some(residual),
-                        predicted_loads: simulated.map(|s| s.loads),
-                        predicted_clearance: simulated.and_then(|s| s.clearance),
+                        predicted: Some(seen),
                         simulated,
                     });
                     break;
@@ -534,13 +498,15 @@ impl Planner {
             base,
             start,
             start_chosen,
-            predicted_error: found.as_ref().and_then(|f| f.predicted),
+            predicted_error: found
+                .as_ref()
+                .and_then(|f| f.predicted.map(|s| s.predicted_error)),
             no_action_error,
-            predicted_loads: found.as_ref().and_then(|f| f.predicted_loads),
+            predicted_loads: found.as_ref().and_then(|f| f.predicted.map(|s| s.loads)),
             simulated_loads: found.as_ref().and_then(|f| f.simulated.map(|s| s.loads)),
             clearance: found.as_ref().and_then(|f| {
                 matches!(objective, Objective::Clear { .. }).then_some(Clearance {
-                    predicted: f.predicted_clearance,
+                    predicted: f.predicted.and_then(|s| s.clearance),
                     simulated: f.simulated.and_then(|s| s.clearance),
                 })
             }),
@@ -564,8 +530,7 @@ pub struct Clearance {
 struct Found {
     plan: PushPlan,
     placed: Placed,
-    predicted: Option<f64>,
-    predicted_loads: Option<PushLoads>,
-    predicted_clearance: Option<f64>,
+    /// What was predicted of it (`None` for `paper`).
+    predicted: Option<search::Scored>,
     simulated: Option<SimulatedHold>,
 }

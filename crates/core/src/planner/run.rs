@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 
 use super::base::{self, BasePose};
 use super::objective::SATISFIED;
+use super::search::Scored;
 use super::{Attempt, Placed, Planner, Query, RETRY_ITERATIONS, Stance};
 use crate::robot::collision::{Allowed, TreeObstacles};
 use crate::robot::plan::{Outcome, PlanOptions, PushPlan, PushSnapshots, execute, reach};
@@ -31,9 +32,9 @@ pub(super) struct Run<'a> {
     /// must meet it in its simulation too (`model`; `physics` predicted
     /// with that very simulation).
     pub verify: bool,
-    /// Pushes passed over as [`Outcome::Missed`]: (rank, push, simulated
-    /// residual).
-    pub missed: Vec<(usize, Push, f64)>,
+    /// Pushes passed over as [`Outcome::Missed`], with their rank and what
+    /// their simulation gave (residual, loads, clearance).
+    pub missed: Vec<(usize, Scored)>,
 }
 
 impl Run<'_> {
@@ -41,12 +42,13 @@ impl Run<'_> {
         self.query.budget.saturating_sub(self.clock.elapsed())
     }
 
+    /// Records an attempt at `push` with what was predicted of it.
     pub fn note(
         &mut self,
         rank: usize,
         push: &Push,
         outcome: Outcome,
-        predicted: Option<f64>,
+        predicted: Option<&Scored>,
         ms: f64,
     ) {
         self.attempts.push(Attempt {
@@ -54,8 +56,8 @@ impl Run<'_> {
             rank,
             push: push.vector.into(),
             outcome,
-            predicted_error: predicted,
-            predicted_loads: None,
+            predicted_error: predicted.map(|s| s.predicted_error),
+            predicted_loads: predicted.map(|s| s.loads),
             simulated_loads: None,
             ms,
         });
@@ -99,15 +101,7 @@ impl Run<'_> {
         match (self.fixed, &self.query.stance) {
             (Some(f), _) => reach(&f.arm, tree, self.rest, push, &f.start).map(|_| ()),
             (None, Stance::Region(region)) => {
-                let mut outcome = Outcome::Unreachable;
-                for pose in base::proposals(region, tree, push) {
-                    let arm = self.planner.placed_at(&pose.isometry());
-                    match reach(&arm, tree, self.rest, push, &ur5::HOME) {
-                        Ok(_) => return Ok(()),
-                        Err(o) => outcome = worst_to_best(outcome, o),
-                    }
-                }
-                Err(outcome)
+                reach_in_region(self.planner, region, tree, self.rest, push)
             }
             (None, Stance::Fixed(_)) => Err(Outcome::Unreachable),
         }
@@ -121,7 +115,7 @@ impl Run<'_> {
         &mut self,
         rank: usize,
         push: &Push,
-        predicted: Option<f64>,
+        predicted: Option<&Scored>,
     ) -> Option<(PushPlan, Placed, Option<SimulatedHold>)> {
         let remaining = self.remaining();
         if remaining.is_zero() {
@@ -161,12 +155,19 @@ impl Run<'_> {
             {
                 Some(Outcome::OverLimit)
             }
-            Some((residual, _))
+            Some((residual, hold))
                 if self.verify
-                    && predicted.is_some_and(|p| p <= SATISFIED)
+                    && predicted.is_some_and(|p| p.predicted_error <= SATISFIED)
                     && residual > SATISFIED =>
             {
-                self.missed.push((rank, *push, residual));
+                let seen = Scored {
+                    push: *push,
+                    predicted_error: residual,
+                    loads: hold.loads,
+                    within_limits: true,
+                    clearance: hold.clearance,
+                };
+                self.missed.push((rank, seen));
                 Some(Outcome::Missed)
             }
             _ => None,
@@ -238,6 +239,26 @@ pub struct SimulatedHold {
     pub loads: PushLoads,
     /// For `clear`: the clearance reached (m).
     pub clearance: Option<f64>,
+}
+
+/// Whether the arm can reach `push` from some placement the base `region`
+/// proposes for it (from home), or the furthest any placement got.
+pub(super) fn reach_in_region(
+    planner: &Planner,
+    region: &super::base::BaseRegion,
+    tree: &crate::tree::Tree,
+    rest: &TreeObstacles,
+    push: &Push,
+) -> Result<(), Outcome> {
+    let mut outcome = Outcome::Unreachable;
+    for pose in base::proposals(region, tree, push) {
+        let arm = planner.placed_at(&pose.isometry());
+        match reach(&arm, tree, rest, push, &ur5::HOME) {
+            Ok(_) => return Ok(()),
+            Err(o) => outcome = worst_to_best(outcome, o),
+        }
+    }
+    Err(outcome)
 }
 
 /// Over several bases, report the outcome that got furthest.

@@ -99,8 +99,12 @@ impl Scored {
 
 /// Sorts `scored` best first (see [`Scored`]'s order).
 pub fn sort_scored(scored: &mut [Scored], objective: &Objective) {
-    let regional = objective.has_goal_region();
-    scored.sort_by(|a, b| a.order(b, regional));
+    scored.sort_by(|a, b| compare(a, b, objective));
+}
+
+/// The search's order of two scored pushes for `objective` (best first).
+pub fn compare(a: &Scored, b: &Scored, objective: &Objective) -> std::cmp::Ordering {
+    a.order(b, objective.has_goal_region())
 }
 
 /// `v` with its length clamped into the trained range.
