@@ -353,7 +353,7 @@ struct Snapshot {
     obstacles: TreeObstacles,
     positions: Vec<nalgebra::Point3<f64>>,
     joint_rotations: Vec<Vector3<f64>>,
-    loads: PushLoads,
+    contact_force: [f64; 3],
 }
 
 impl<'a> PushSnapshots<'a> {
@@ -407,7 +407,7 @@ impl<'a> PushSnapshots<'a> {
                     .ok()
                     .map(|o| Snapshot {
                         obstacles: self.rest.with_tree_at(self.tree, &o.final_positions),
-                        loads: PushLoads::of_outcome(self.tree, &o),
+                        contact_force: o.report.contact_force,
                         positions: o.final_positions,
                         joint_rotations: o.joint_rotations,
                     })
@@ -423,7 +423,10 @@ impl<'a> PushSnapshots<'a> {
         self.cache[self.count() - 1]
             .get()
             .and_then(|s| s.as_ref())
-            .map(|s| (s.positions.as_slice(), s.loads))
+            .map(|s| {
+                let loads = PushLoads::of_state(self.tree, &s.joint_rotations, s.contact_force);
+                (s.positions.as_slice(), loads)
+            })
     }
 }
 

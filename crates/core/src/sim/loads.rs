@@ -95,11 +95,20 @@ pub struct PushLoads {
 impl PushLoads {
     /// The simulator's own numbers for a solved push.
     pub fn of_outcome(tree: &Tree, outcome: &super::PushOutcome) -> Self {
-        let peak = branch_loads(tree, &outcome.joint_rotations).peak_stress;
+        Self::of_state(tree, &outcome.joint_rotations, outcome.report.contact_force)
+    }
+
+    /// The loads of a held state: its joint rotations and contact force.
+    pub fn of_state(
+        tree: &Tree,
+        joint_rotations: &[Vector3<f64>],
+        contact_force: [f64; 3],
+    ) -> Self {
+        let peak = branch_loads(tree, joint_rotations).peak_stress;
         Self {
             peak_stress: peak.map_or(0.0, |p| p.stress),
             peak_node: peak.map(|p| p.node),
-            contact_force: Vector3::from(outcome.report.contact_force).norm(),
+            contact_force: Vector3::from(contact_force).norm(),
         }
     }
 
