@@ -170,6 +170,29 @@ fn push_samples(
     Some(out)
 }
 
+/// Velocities and accelerations of timed samples by central differences;
+/// zero at both ends (the push starts and ends at rest).
+fn central_differences(samples: &[(f64, Config)]) -> Vec<([f64; 6], [f64; 6])> {
+    (0..samples.len())
+        .map(|k| {
+            let mut out = ([0.0; 6], [0.0; 6]);
+            if k == 0 || k + 1 >= samples.len() {
+                return out;
+            }
+            let (a, b, c) = (&samples[k - 1], &samples[k], &samples[k + 1]);
+            let (h1, h2) = (b.0 - a.0, c.0 - b.0);
+            if h1 <= 0.0 || h2 <= 0.0 {
+                return out;
+            }
+            for i in 0..6 {
+                out.0[i] = (c.1[i] - a.1[i]) / (h1 + h2);
+                out.1[i] = ((c.1[i] - b.1[i]) / h2 - (b.1[i] - a.1[i]) / h1) * 2.0 / (h1 + h2);
+            }
+            out
+        })
+        .collect()
+}
+
 /// The whole trajectory: approach along `approach` (collision-checked in
 /// `scene` when blended), push `length` along `direction` from the
 /// approach's end, hold, release, retreat.
@@ -214,24 +237,18 @@ pub fn execution(
     // The push, slowed until every joint keeps its limits.
     let mut speed = options.push_speed;
     let mut acceleration = options.push_acceleration;
-    let samples = loop {
+    let (samples, derivatives) = loop {
         let samples = push_samples(arm, start, direction, length, speed, acceleration, period)?;
-        let mut worst: f64 = 0.0;
-        for w in samples.windows(3) {
-            let dt = w[1].0 - w[0].0;
-            let dt2 = w[2].0 - w[1].0;
-            if dt <= 0.0 || dt2 <= 0.0 {
-                continue;
-            }
-            for i in 0..6 {
-                let v = (w[2].1[i] - w[0].1[i]) / (dt + dt2);
-                let a = ((w[2].1[i] - w[1].1[i]) / dt2 - (w[1].1[i] - w[0].1[i]) / dt) * 2.0
-                    / (dt + dt2);
-                worst = worst.max(v.abs() / vmax[i]).max(a.abs() / amax[i]);
-            }
-        }
+        let derivatives = central_differences(&samples);
+        let (vmax, amax) = (&vmax, &amax);
+        let worst = derivatives
+            .iter()
+            .flat_map(|(v, a)| {
+                (0..6).map(move |i| (v[i].abs() / vmax[i]).max(a[i].abs() / amax[i]))
+            })
+            .fold(0.0, f64::max);
         if worst <= 1.0 {
-            break samples;
+            break (samples, derivatives);
         }
         if speed < 1e-3 {
             return None;
@@ -239,22 +256,9 @@ pub fn execution(
         speed /= worst.max(1.05);
         acceleration /= worst.max(1.05);
     };
-    let derivatives = |k: usize| -> (Vec<f64>, Vec<f64>) {
-        if k == 0 || k + 1 >= samples.len() {
-            return (vec![0.0; 6], vec![0.0; 6]);
-        }
-        let (a, b, c) = (&samples[k - 1], &samples[k], &samples[k + 1]);
-        let (h1, h2) = (b.0 - a.0, c.0 - b.0);
-        let v = (0..6).map(|i| (c.1[i] - a.1[i]) / (h1 + h2)).collect();
-        let acc = (0..6)
-            .map(|i| ((c.1[i] - b.1[i]) / h2 - (b.1[i] - a.1[i]) / h1) * 2.0 / (h1 + h2))
-            .collect();
-        (v, acc)
-    };
     let push_time = samples.last()?.0;
-    for (k, (t, q)) in samples.iter().enumerate().skip(1) {
-        let (v, a) = derivatives(k);
-        points.push(point(q, &v, &a, t0 + t));
+    for ((t, q), (v, a)) in samples.iter().zip(&derivatives).skip(1) {
+        points.push(point(q, v, a, t0 + t));
     }
     let push_end_point = points.len() - 1;
     let held = samples.last()?.1;
@@ -264,10 +268,9 @@ pub fn execution(
         points.push(point(&held, &zero, &zero, t));
     }
     // Release: the push backward in time.
-    for (k, (tk, q)) in samples.iter().enumerate().rev().skip(1) {
-        let (v, a) = derivatives(k);
+    for ((tk, q), (v, a)) in samples.iter().zip(&derivatives).rev().skip(1) {
         let v: Vec<f64> = v.iter().map(|x| -x).collect();
-        points.push(point(q, &v, &a, t + (push_time - tk)));
+        points.push(point(q, &v, a, t + (push_time - tk)));
     }
     t += push_time;
     // Retreat: the approach backward in time.
