@@ -80,12 +80,6 @@ impl Region {
             Region::Capsule { a, b, .. } => nalgebra::center(a, b),
         }
     }
-
-    /// Distance from `point` to the region (m), 0 inside.
-    pub fn distance_to_point(&self, point: &Point3<f64>) -> f64 {
-        let (shape, pose) = self.shape();
-        shape.distance_to_point(&pose, vec3(point), true)
-    }
 }
 
 /// A region prepared for many distance queries.
@@ -309,6 +303,25 @@ impl Scorer<'_> {
         }
     }
 
+    /// Per branch, its nearest region: (node, signed distance, unit
+    /// direction from that region toward the branch). Empty without
+    /// regions to clear.
+    fn nearest_regions<'s>(
+        &'s self,
+        tree: &'s Tree,
+        positions: &'s [Point3<f64>],
+    ) -> impl Iterator<Item = (usize, f64, Vector3<f64>)> + 's {
+        tree.branches_iter().filter_map(move |(node, branch)| {
+            let parent = tree.parent(node)?;
+            let (a, b) = (positions[parent], positions[node]);
+            self.regions
+                .iter()
+                .map(|r| r.signed_distance(&a, &b, branch.radius))
+                .max_by(|x, y| (-x.0).total_cmp(&-y.0))
+                .map(|(dist, away)| (node, dist, away))
+        })
+    }
+
     /// For `clear`: the smallest signed distance between any branch and any
     /// region (m; negative: overlapping), the clearance reached; `None`
     /// for other objectives.
@@ -316,18 +329,11 @@ impl Scorer<'_> {
         let Objective::Clear { .. } = self.objective else {
             return None;
         };
-        let mut nearest = f64::INFINITY;
-        for (node, branch) in tree.branches_iter() {
-            let Some(parent) = tree.parent(node) else {
-                continue;
-            };
-            for r in &self.regions {
-                let (dist, _) =
-                    r.signed_distance(&positions[parent], &positions[node], branch.radius);
-                nearest = nearest.min(dist);
-            }
-        }
-        Some(nearest)
+        Some(
+            self.nearest_regions(tree, positions)
+                .map(|(_, dist, _)| dist)
+                .fold(f64::INFINITY, f64::min),
+        )
     }
 
     /// For `clear`: every branch closer than the margin to a region, its
@@ -336,24 +342,14 @@ impl Scorer<'_> {
         let Objective::Clear { margin, .. } = self.objective else {
             return Vec::new();
         };
-        let mut out: Vec<Intrusion> = Vec::new();
-        for (node, branch) in tree.branches_iter() {
-            let Some(parent) = tree.parent(node) else {
-                continue;
-            };
-            let (a, b) = (positions[parent], positions[node]);
-            let deepest = self
-                .regions
-                .iter()
-                .map(|r| r.signed_distance(&a, &b, branch.radius))
-                .map(|(dist, away)| (margin - dist, away))
-                .filter(|(depth, _)| *depth > 0.0)
-                .max_by(|x, y| x.0.total_cmp(&y.0));
-            if let Some((depth, away)) = deepest {
-                out.push(Intrusion { node, depth, away });
-            }
-        }
-        out
+        self.nearest_regions(tree, positions)
+            .map(|(node, dist, away)| Intrusion {
+                node,
+                depth: margin - dist,
+                away,
+            })
+            .filter(|i| i.depth > 0.0)
+            .collect()
     }
 }
 
