@@ -36,6 +36,16 @@ fn episode(n: usize, seed: u64) -> (Tree, Vec<Point3<f64>>) {
     }
 }
 
+/// What the gripper may touch at the pre-contact pose: the contacted
+/// branch and the branches leaving its node.
+fn near_contact(tree: &Tree, node: usize) -> Allowed {
+    Allowed {
+        gripper_branches: std::iter::once(node)
+            .chain(tree.children(node).iter().copied())
+            .collect(),
+    }
+}
+
 /// The controller's trajectory: velocity-continuous, within every joint's
 /// velocity and acceleration limit by finite differences of the positions
 /// alone, the approach collision-free (its blended samples too), and the
@@ -117,11 +127,7 @@ fn check_execution(plan: &Plan, query: &Query) {
     // The approach, blended or not, clears the tree and the obstacles.
     let arm = CollisionModel::new(Ur5::default().with_base(base));
     let rest = TreeObstacles::new(&query.tree).with_obstacles(&query.obstacles);
-    let near = Allowed {
-        gripper_branches: std::iter::once(p.node)
-            .chain(query.tree.children(p.node).iter().copied())
-            .collect(),
-    };
+    let near = near_contact(&query.tree, p.node);
     for point in &points[..=e.push_start_point] {
         let q: [f64; 6] = point.positions.clone().try_into().unwrap();
         assert_eq!(arm.check(&q, &rest, &near), None, "approach collides");
@@ -152,11 +158,7 @@ fn check_plan(plan: &Plan, query: &Query) {
     );
     let arm = CollisionModel::new(Ur5::default().with_base(plan.base.isometry()));
     let rest = TreeObstacles::new(tree).with_obstacles(&query.obstacles);
-    let near = Allowed {
-        gripper_branches: std::iter::once(p.node)
-            .chain(tree.children(p.node).iter().copied())
-            .collect(),
-    };
+    let near = near_contact(tree, p.node);
     for point in &p.trajectory[..=p.push_start_index] {
         assert_eq!(arm.check(&point.q, &rest, &near), None, "approach collides");
     }
