@@ -31,7 +31,7 @@ pub struct EvalIdentifyArgs {
     #[arg(long, default_value = "models")]
     models: PathBuf,
     /// Trees per size of the closed-loop study (0: skip it).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 10)]
     closed_loop_trees_per_size: usize,
 }
 
@@ -73,7 +73,8 @@ pub fn eval_identify(args: EvalIdentifyArgs) -> anyhow::Result<()> {
         );
         let planner = treemanip::planner::Planner::default();
         let loop_trees = test_trees(&args.data, &args.sizes.0, args.closed_loop_trees_per_size)?;
-        table += "\n## Closed loop: `/v1/plan` with the first push's observation\n\nPhysics strategy, the evaluation's base region; the target is a random paper-style push of the true tree; the second plan identifies the stiffness from the first push's held positions (3 mm noise) and plans again from rest (`treemanip::eval::closed_loop`).\n\n";
+        table += "\n## Closed loop: `/v1/plan` with the first push's observation\n\nPhysics strategy, the evaluation's base region; the target is where a random paper-style push that passes the arm's reach test moves the true tree; the second plan gets the first push's held positions (3 mm noise) as `observations`, identifies the stiffness from them and plans again from rest, searching the first push again (`treemanip::eval::closed_loop`). `reproduced` keeps the targets the planner on the true stiffness reaches within 2 cm; the others are targets no path or straight push reaches, whatever the stiffness.\n\n";
+        table += treemanip::eval::closed_loop::HEADER;
         for sigma in [0.3, 0.5] {
             let bar = progress::bar(loop_trees.len() as u64, "trees");
             bar.set_message(format!("closed loop σ={sigma}"));

@@ -19,8 +19,10 @@
 
 pub mod base;
 pub mod objective;
+mod observed;
 pub mod predict;
 mod query;
+pub mod refine;
 mod run;
 pub mod search;
 pub mod seeds;
@@ -30,6 +32,7 @@ use std::time::Instant;
 use nalgebra::Isometry3;
 use serde::Serialize;
 
+use crate::identify::Identification;
 use crate::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use crate::robot::plan::{Outcome, PushPlan};
 use crate::robot::rrt::{Config, MotionValidator};
@@ -132,6 +135,10 @@ pub struct Plan {
     pub evaluations: usize,
     pub attempts: Vec<Attempt>,
     pub total_ms: f64,
+    /// With observations: the stiffness identified from them, which the
+    /// plan was made with.
+    #[serde(skip)]
+    pub identification: Option<Identification>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -209,13 +216,14 @@ impl Planner {
         }
     }
 
-    /// Plans `query` with the contact `policy` and, for `model`, the
-    /// `forward` model.
-    pub fn plan(
+    /// Plans `query` on its tree's stiffness as given (no observations),
+    /// the searching strategies also starting from the pushes in `again`.
+    fn plan_known(
         &self,
         query: &Query,
         policy: &dyn ContactPolicy,
         forward: Option<&dyn Predictor>,
+        again: &[Push],
     ) -> Result<Plan, PlanError> {
         let clock = Instant::now();
         let tree = &query.tree;
@@ -314,7 +322,12 @@ impl Planner {
             Strategy::Model => Some(forward.ok_or(PlanError::NoForwardModel)?),
         };
         if let Some(predictor) = predictor {
-            let seeds: Vec<Push> = proposals.iter().take(searched).map(|(_, p)| *p).collect();
+            let seeds: Vec<Push> = proposals
+                .iter()
+                .take(searched)
+                .map(|(_, p)| *p)
+                .chain(again.iter().copied())
+                .collect();
             let options = SearchOptions {
                 max_evaluations: query.evaluations(),
                 seed: query.seed,
@@ -331,6 +344,24 @@ impl Planner {
                 &options,
             )?;
             evaluations = count;
+            // Physics pushes are polished (see `refine`).
+            let scored = if query.strategy == Strategy::Physics {
+                let (mut polished, count) = refine::refine(
+                    tree,
+                    objective,
+                    screen.as_ref(),
+                    &scored,
+                    predictor,
+                    &feasible,
+                    refine::PHYSICS_REFINE_EVALUATIONS,
+                )?;
+                evaluations += count;
+                polished.extend(scored);
+                search::sort_scored(&mut polished, objective);
+                polished
+            } else {
+                scored
+            };
             let mut executed = 0;
             let mut checked = 0;
             let mut over_limit = 0;
@@ -515,6 +546,7 @@ impl Planner {
             evaluations,
             attempts,
             total_ms: clock.elapsed().as_secs_f64() * 1e3,
+            identification: None,
         })
     }
 }

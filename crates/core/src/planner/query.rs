@@ -10,6 +10,7 @@ use super::DEFAULT_CANDIDATES;
 use super::base::BaseRegion;
 use super::objective::{Limits, Objective};
 use super::search::SearchOptions;
+use crate::identify::{IdentifyConfig, Probe};
 use crate::robot::collision::Obstacle;
 use crate::robot::execution::ExecutionOptions;
 use crate::robot::rrt::Config;
@@ -62,6 +63,13 @@ pub struct Query {
     /// How the controller's trajectory is timed (hold, push speed,
     /// scaling).
     pub execution: ExecutionOptions,
+    /// Pushes already made on this tree and the positions they held
+    /// (probes, or an executed plan's push): the planner identifies the
+    /// stiffness from them first and plans on the estimate
+    /// ([`Planner::plan`](super::Planner::plan)).
+    pub observations: Vec<Probe>,
+    /// How `observations` are fitted (noise, prior).
+    pub identify: IdentifyConfig,
 }
 
 impl Query {
@@ -86,6 +94,8 @@ impl Query {
             max_evaluations: None,
             seed: 1,
             execution: ExecutionOptions::default(),
+            observations: Vec::new(),
+            identify: IdentifyConfig::default(),
             tree,
         }
     }

@@ -18,7 +18,7 @@ use super::state::ModelInfo;
 use super::tree_json::TreeJson;
 use super::validate::{MAX_DISTANCE, joints, near_point, vector3};
 use treemanip_core::graph::Task;
-use treemanip_core::identify::{Noise, identify};
+use treemanip_core::identify::Noise;
 use treemanip_core::planner::base::{BasePose, BaseRegion};
 use treemanip_core::planner::{self, Attempt, Predictor, Query, Stance, Strategy};
 use treemanip_core::robot::collision::Obstacle;
@@ -380,23 +380,19 @@ pub async fn plan(
     query.seed = request.seed.unwrap_or(1);
     query.execution = execution_options(&request)?;
     let config = identify_config(request.observation_noise, None, "observation_")?;
-    let observations = probes(&query.tree, &request.observations, &config, "observations")?;
+    query.observations = probes(&query.tree, &request.observations, &config, "observations")?;
+    query.identify = config;
     let info = ModelInfo::of(&policy, &state);
     let planner = state.planner.clone();
     let response = state
         .run_blocking("/v1/plan", move || {
-            let identification = (!observations.is_empty()).then(|| {
-                let id = identify(&query.tree, &observations, &config);
-                query.tree = id.tree.clone();
-                IdentifyResponse::from(&id)
-            });
             let plan = planner.plan(
                 &query,
                 &*policy,
                 forward.as_deref().map(|m| m as &dyn Predictor),
             )?;
             Ok(PlanResponse {
-                identification,
+                identification: plan.identification.as_ref().map(IdentifyResponse::from),
                 ..response(plan, info, warnings)
             })
         })
