@@ -272,6 +272,36 @@ fn dataset_seed(dir: &Path) -> Option<u64> {
     v["config"]["seed"].as_u64()
 }
 
+/// The `dataset collect` command that regenerates the data in `dir`, from
+/// its `summary.json`: the seed and every option that differs from the
+/// default (stiffness perturbations, contact, trees per size).
+fn dataset_command(dir: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(dir.join("summary.json")).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let config = &v["config"];
+    let mut command = format!(
+        "treemanip dataset collect --out DIR --seed {}",
+        config["seed"].as_u64()?
+    );
+    let sigma = config["stiffness"]["branch_log_sigma"]
+        .as_f64()
+        .unwrap_or(0.0);
+    if sigma != 0.0 {
+        command += &format!(" --stiffness-sigma {sigma}");
+    }
+    let global = config["stiffness"]["global_factor"].as_f64().unwrap_or(1.0);
+    if global != 1.0 {
+        command += &format!(" --stiffness-global {global}");
+    }
+    if let Some(contact) = config["contact"].as_str().filter(|c| *c != "slot") {
+        command += &format!(" --contact {contact}");
+    }
+    if let Some(n) = config["trees_per_size"].as_u64().filter(|n| *n != 100) {
+        command += &format!(" --trees-per-size {n}");
+    }
+    Some(command)
+}
+
 /// The recorded command with the program shown as `treemanip`, wherever
 /// the binary was run from.
 fn command_line(recorded: &str) -> String {
@@ -314,8 +344,7 @@ fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
         training_data: TrainingData {
             directory: state.config.data.display().to_string(),
             dataset_seed: dataset_seed(&state.config.data),
-            regenerate: dataset_seed(&state.config.data)
-                .map(|s| format!("treemanip dataset collect --out DIR --seed {s}")),
+            regenerate: dataset_command(&state.config.data),
             sizes: state.config.sizes.clone(),
             limit_per_size: state.config.limit_per_size,
             validation: "trees with index ≡ 9 (mod 10) in each size file".into(),

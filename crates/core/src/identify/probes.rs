@@ -1,28 +1,38 @@
-//! Choosing the next probe pushes: the ones that most reduce the
-//! posterior's uncertainty.
+//! Choosing the next probe pushes: the ones that most sharpen what the
+//! estimate is for, predicting the pushes a planner will make.
 //!
 //! Candidates are pushes at the tree's leaves (the longest lever on every
 //! joint of their path), in four directions perpendicular to the leaf's
 //! branch, of a fixed length (shortened once when the simulator cannot
-//! realise it). A candidate's value is its expected information gain
-//! about x = ln K_s under the linearised model at the current estimate:
+//! realise it), and a sample of the paper's push distribution
+//! ([`PushDistribution`], nodes uniform). Under the linearised model at the
+//! current estimate, with H the posterior precision of x = ln K_s and J a
+//! push's whitened position Jacobian, a candidate is worth the expected
+//! variance it removes from the predicted positions of the paper's pushes
+//! (V-optimal design):
 //!
-//! IG = ½ (ln det(H + JᵀJ) − ln det H),
+//! tr(A H⁻¹) − tr(A (H + JᵀJ)⁻¹),  A = the mean JₕᵀJₕ over [`TARGET_PUSHES`]
+//! pushes drawn from that distribution.
 //!
-//! with H the current posterior precision and J the candidate's whitened
-//! position Jacobian. Probes are picked greedily, each adding its JᵀJ to
-//! H before the next is scored: a second push along the same path is worth
-//! less than the first, which is what spreads the probes over the tree.
-//! A global factor is invisible in positions, so these gains are about
-//! ratios; a force measured with any probe fixes the level.
+//! A design that only maximised the information about x (D-optimal,
+//! ½ ln det(H + JᵀJ)/det H) spends probes on the stiffness of twigs that
+//! few pushes bend; on 40 test trees its 5 probes left a held-out error of
+//! 3.9 mm where 10 random pushes left 3.2. Probes are picked greedily, each
+//! adding its JᵀJ to H before the next is scored, so a second push along
+//! the same path is worth less than the first. A global factor is
+//! invisible in positions, so the gains are about ratios; a force measured
+//! with any probe fixes the level.
 
 use std::sync::atomic::AtomicUsize;
 
 use nalgebra::{DMatrix, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use super::fit::Posterior;
 use super::{IdentifyConfig, Probe};
+use crate::sim::sampling::PushDistribution;
 use crate::sim::{ContactModel, Push};
 use crate::tree::Tree;
 
@@ -31,9 +41,20 @@ use crate::tree::Tree;
 pub struct ProposedProbe {
     pub push: Push,
     pub contact: ContactModel,
-    /// Expected information gain (nats) given the probes chosen before it.
+    /// Expected information gain about ln K (nats) given the probes
+    /// chosen before it.
     pub information_gain: f64,
+    /// The variance it is expected to remove from the predicted positions
+    /// of the paper's pushes (m², summed over coordinates, averaged over
+    /// pushes), given the probes chosen before it: what it was chosen for.
+    pub prediction_variance_reduction: f64,
 }
+
+/// Pushes drawn from the paper's distribution whose predictions the
+/// probes are chosen to sharpen (and offered as candidates too).
+pub const TARGET_PUSHES: usize = 12;
+/// Seed of that draw (fixed: the same tree gets the same proposals).
+const TARGET_SEED: u64 = 0x7072_6f62;
 
 /// What to propose.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,8 +107,36 @@ pub fn choose_probes(
     allowed: &(dyn Fn(&Push) -> bool + Sync),
 ) -> Vec<ProposedProbe> {
     let count = AtomicUsize::new(0);
+    let jacobian_info = |push: Push| -> Option<DMatrix<f64>> {
+        let probe = Probe {
+            push,
+            contact: request.contact,
+            observed: tree.positions().iter().map(|p| Some(*p)).collect(),
+            contact_force: None,
+        };
+        let jac = super::fit::probe_jacobian(tree, &posterior.mean, &probe, config, &count)?;
+        Some(jac.transpose() * jac)
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(TARGET_SEED);
+    let sampled: Vec<Push> = (0..TARGET_PUSHES * 3)
+        .map(|_| PushDistribution::default().sample(tree, &mut rng))
+        .collect();
+    let targets: Vec<(Push, DMatrix<f64>)> = sampled
+        .par_iter()
+        .filter_map(|&p| jacobian_info(p).map(|info| (p, info)))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .take(TARGET_PUSHES)
+        .collect();
+    let p = posterior.mean.len();
+    // A: where predictions are sensitive to ln K, weighted by how often
+    // the paper's pushes bend each path.
+    let weight = targets
+        .iter()
+        .fold(DMatrix::zeros(p, p), |a, (_, info)| a + info)
+        / targets.len().max(1) as f64;
     let leaves: Vec<usize> = (1..tree.len()).filter(|&j| tree.is_leaf(j)).collect();
-    let candidates: Vec<(Push, DMatrix<f64>)> = leaves
+    let leaf_pushes: Vec<(Push, DMatrix<f64>)> = leaves
         .par_iter()
         .flat_map_iter(|&node| directions(tree, node).map(|d| (node, d)))
         .filter_map(|(node, d)| {
@@ -99,40 +148,43 @@ pub fn choose_probes(
                 if !allowed(&push) {
                     return None;
                 }
-                let probe = Probe {
-                    push,
-                    contact: request.contact,
-                    observed: tree.positions().iter().map(|p| Some(*p)).collect(),
-                    contact_force: None,
-                };
-                let jac =
-                    super::fit::probe_jacobian(tree, &posterior.mean, &probe, config, &count)?;
-                Some((push, jac.transpose() * jac))
+                jacobian_info(push).map(|info| (push, info))
             })
         })
+        .collect();
+    let candidates: Vec<(Push, DMatrix<f64>)> = leaf_pushes
+        .into_iter()
+        .chain(targets.into_iter().filter(|(push, _)| allowed(push)))
         .collect();
     let mut precision = posterior
         .covariance
         .clone()
         .try_inverse()
         .unwrap_or_else(|| posterior.prior_precision.clone());
+    let variance = |h: &DMatrix<f64>| {
+        h.clone()
+            .cholesky()
+            .map_or(f64::INFINITY, |c| (&weight * c.inverse()).trace())
+    };
     let mut chosen = Vec::new();
     let mut used = vec![false; candidates.len()];
     for _ in 0..request.count {
-        let base = log_det(&precision);
+        let base = variance(&precision);
         let best = candidates
             .iter()
             .enumerate()
             .filter(|(k, _)| !used[*k])
-            .map(|(k, (_, info))| (k, 0.5 * (log_det(&(&precision + info)) - base)))
+            .map(|(k, (_, info))| (k, base - variance(&(&precision + info))))
             .max_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((k, gain)) = best else { break };
+        let Some((k, reduction)) = best else { break };
         used[k] = true;
+        let gain = 0.5 * (log_det(&(&precision + &candidates[k].1)) - log_det(&precision));
         precision += &candidates[k].1;
         chosen.push(ProposedProbe {
             push: candidates[k].0,
             contact: request.contact,
             information_gain: gain,
+            prediction_variance_reduction: reduction * config.noise.position.powi(2),
         });
     }
     chosen

@@ -35,8 +35,10 @@ pub const PHYSICS_REFINE_EVALUATIONS: usize = 72;
 
 /// Polishes the best push of each of the best [`REFINED_NODES`] nodes in
 /// `scored` (sorted best first) with at most `max_evaluations`
-/// predictions. Returns every push scored on the way (the polished ones
-/// among them) and the number of predictions made.
+/// predictions. Returns the polished pushes that improved on where they
+/// started (only those: the neighbours scored on the way are near copies,
+/// and a list full of them would spend the planner's arm attempts on one
+/// spot) and the number of predictions made.
 pub fn refine(
     tree: &Tree,
     objective: &Objective,
@@ -55,8 +57,8 @@ pub fn refine(
             current.push(*s);
         }
     }
+    let started = current.clone();
     let mut step = vec![INITIAL_STEP; current.len()];
-    let mut found = Vec::new();
     let mut evaluations = 0;
     while evaluations < max_evaluations {
         let mut owners = Vec::new();
@@ -97,7 +99,6 @@ pub fn refine(
             .zip(score(tree, objective, limits, &pushes, predicted))
         {
             let Some(s) = s else { continue };
-            found.push(s);
             if best[*k].is_none_or(|b| compare(&s, &b, objective).is_lt()) {
                 best[*k] = Some(s);
             }
@@ -112,7 +113,13 @@ pub fn refine(
             }
         }
     }
-    Ok((found, evaluations))
+    let polished = current
+        .into_iter()
+        .zip(started)
+        .filter(|(now, then)| now.push != then.push)
+        .map(|(now, _)| now)
+        .collect();
+    Ok((polished, evaluations))
 }
 
 #[cfg(test)]
@@ -167,10 +174,8 @@ mod tests {
         )
         .unwrap();
         assert!(evaluations <= PHYSICS_REFINE_EVALUATIONS && evaluations > 0);
-        let best = found
-            .iter()
-            .map(|s| s.predicted_error)
-            .fold(f64::INFINITY, f64::min);
+        assert_eq!(found.len(), 1, "one node, polished");
+        let best = found[0].predicted_error;
         assert!(
             best < scored_start.predicted_error * 0.5 && best < 0.004,
             "from {:.4} m to {best:.4} m",

@@ -193,6 +193,37 @@ fn central_differences(samples: &[(f64, Config)]) -> Vec<([f64; 6], [f64; 6])> {
         .collect()
 }
 
+/// How far the push's ends, where it starts and stops at rest, go over the
+/// acceleration limits (1: at them). Central differences are zero there
+/// and cannot see it: near a stretched elbow the joints' acceleration is
+/// largest in the first and last sample interval. Checked one-sided: the
+/// acceleration that leaves rest and reaches the next sample,
+/// 2 (q₁ − q₀)/h², and the jump to the next sample's velocity, v₁/h (and
+/// the same backward at the end).
+fn at_rest_ends(
+    samples: &[(f64, Config)],
+    derivatives: &[([f64; 6], [f64; 6])],
+    amax: &[f64],
+) -> f64 {
+    let n = samples.len();
+    if n < 2 {
+        return 0.0;
+    }
+    let mut worst: f64 = 0.0;
+    for (rest, next) in [(0, 1), (n - 1, n - 2)] {
+        let h = (samples[next].0 - samples[rest].0).abs();
+        if h <= 0.0 {
+            continue;
+        }
+        for i in 0..6 {
+            let leave = 2.0 * (samples[next].1[i] - samples[rest].1[i]).abs() / (h * h);
+            let jump = derivatives[next].0[i].abs() / h;
+            worst = worst.max(leave.max(jump) / amax[i]);
+        }
+    }
+    worst
+}
+
 /// The whole trajectory: approach along `approach` (collision-checked in
 /// `scene` when blended), push `length` along `direction` from the
 /// approach's end, hold, release, retreat.
@@ -246,7 +277,7 @@ pub fn execution(
             .flat_map(|(v, a)| {
                 (0..6).map(move |i| (v[i].abs() / vmax[i]).max(a[i].abs() / amax[i]))
             })
-            .fold(0.0, f64::max);
+            .fold(at_rest_ends(&samples, &derivatives, amax), f64::max);
         if worst <= 1.0 {
             break (samples, derivatives);
         }

@@ -99,6 +99,10 @@ pub struct ProposedProbeJson {
     /// Expected information gain about ln K_s (nats), given the probes
     /// proposed before it.
     pub information_gain: f64,
+    /// Variance it is expected to remove from the predicted positions of
+    /// the paper's pushes (m², summed over coordinates, averaged over
+    /// pushes), given the probes proposed before it: what it is chosen by.
+    pub prediction_variance_reduction: f64,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -162,6 +166,7 @@ pub async fn propose(
                         push: [c.push.vector.x, c.push.vector.y, c.push.vector.z],
                         contact: c.contact,
                         information_gain: c.information_gain,
+                        prediction_variance_reduction: c.prediction_variance_reduction,
                     })
                     .collect(),
             })
