@@ -215,10 +215,10 @@ fn at_rest_ends(
         if h <= 0.0 {
             continue;
         }
-        for i in 0..6 {
+        for (i, limit) in amax.iter().enumerate().take(6) {
             let leave = 2.0 * (samples[next].1[i] - samples[rest].1[i]).abs() / (h * h);
             let jump = derivatives[next].0[i].abs() / h;
-            worst = worst.max(leave.max(jump) / amax[i]);
+            worst = worst.max(leave.max(jump) / limit);
         }
     }
     worst
