@@ -27,11 +27,14 @@ pub fn check(addr: SocketAddr, timeout: Duration) -> Result<(), String> {
         .set_read_timeout(Some(timeout))
         .and_then(|_| stream.set_write_timeout(Some(timeout)))
         .map_err(|e| e.to_string())?;
-    write!(
-        stream,
-        "GET /healthz HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
-    )
-    .map_err(|e| format!("cannot send to {addr}: {e}"))?;
+    // One write: `write!` on the bare stream sends each formatted piece
+    // apart, and a server that answers and closes after the first piece
+    // (the request line is enough to route it) breaks the pipe under the
+    // rest.
+    let request = format!("GET /healthz HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
+    stream
+        .write_all(request.as_bytes())
+        .map_err(|e| format!("cannot send to {addr}: {e}"))?;
     let mut head = [0u8; 64];
     let mut got = 0;
     while got < 12 {
