@@ -14,7 +14,7 @@ use treemanip::robot::{Ur5, ur5};
 
 /// The Panda URDF that the `example-robot-data` package ships, or `None`
 /// (the test then says why it skipped, unless Python is required).
-fn panda_urdf() -> Option<PathBuf> {
+pub fn panda_urdf() -> Option<PathBuf> {
     let out = Command::new("python3")
         .args([
             "-c",

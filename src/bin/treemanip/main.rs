@@ -15,6 +15,7 @@ mod plan;
 mod progress;
 #[cfg(feature = "train")]
 mod ranks;
+mod robot;
 mod sim;
 #[cfg(feature = "train")]
 mod tasks;
@@ -68,6 +69,9 @@ enum Command {
     /// Run the HTTP service (the same as `treemanip-server`; the container
     /// image's entry point).
     Serve(treemanip::api::server::ServeArgs),
+    /// Inspect an arm's URDF (collision shapes, fitted meshes).
+    #[command(subcommand)]
+    Robot(robot::RobotCommand),
 }
 
 #[cfg(feature = "train")]
@@ -117,6 +121,7 @@ fn main() -> std::process::ExitCode {
         Command::Plan(args) => plan::plan(args),
         Command::Serve(args) => treemanip::api::server::run(args),
         Command::Identify(args) => identify::identify_cmd(args),
+        Command::Robot(cmd) => robot::run(cmd),
         #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Identify(args)) => identify_eval::eval_identify(args),
         #[cfg(feature = "train")]

@@ -7,6 +7,8 @@ pub mod dh;
 pub mod execution;
 pub mod ik;
 pub mod ik_numeric;
+pub mod link_geometry;
+pub mod mesh_fit;
 pub mod plan;
 pub mod ros;
 pub mod rrt;

@@ -1,0 +1,296 @@
+//! A few capsules that enclose a link's collision mesh.
+//!
+//! Meshes are slow to collide and a robot description should load without
+//! them, so each link's mesh is replaced by one to three capsules that
+//! contain every triangle (the library form of
+//! `scripts/measure-ur5-meshes.py`, which sized the UR5's capsules):
+//!
+//! 1. the triangles are split into k slices (k = 1, 2, 3) by their
+//!    centroids along the mesh's main axis (principal component);
+//! 2. each slice gets the tightest capsule around every corner of its
+//!    triangles on its own main axis: the radius is the largest distance
+//!    from that axis (through the centre of the corners' bounding box
+//!    across it), and the segment is as short as that radius allows;
+//! 3. the k with the least total capsule volume wins (a larger k only when
+//!    it saves at least [`SPLIT_GAIN`] of the volume).
+//!
+//! A capsule is convex, so holding a triangle's three corners it holds the
+//! whole triangle: the capsules of a link enclose its mesh surface, which
+//! is what collides. How snugly is reported as the capsules' volume over
+//! the mesh's convex hull's ([`MeshFit::volume_ratio`]).
+
+use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
+use parry3d_f64::math::Vec3;
+
+/// A capsule in a link's frame: the points within `radius` of [a, b] (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Capsule {
+    pub a: Point3<f64>,
+    pub b: Point3<f64>,
+    pub radius: f64,
+}
+
+impl Capsule {
+    /// Length of the segment (m).
+    pub fn height(&self) -> f64 {
+        (self.b - self.a).norm()
+    }
+
+    /// Whether `p` is inside (or on) the capsule.
+    pub fn contains(&self, p: &Point3<f64>) -> bool {
+        distance_to_segment(p, &self.a, &self.b) <= self.radius
+    }
+}
+
+/// Fewest capsules unless more save this fraction of the volume.
+pub const SPLIT_GAIN: f64 = 0.15;
+/// Most capsules per link.
+pub const MAX_CAPSULES: usize = 3;
+
+/// The capsules fitted to one mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshFit {
+    pub capsules: Vec<Capsule>,
+    /// The capsules' total volume over the mesh's convex hull's (≥ 1 for
+    /// one capsule; how much room the approximation adds). `None` when the
+    /// hull is flat.
+    pub volume_ratio: Option<f64>,
+    /// Triangles enclosed.
+    pub triangles: usize,
+}
+
+fn capsule_volume(c: &Capsule) -> f64 {
+    let r = c.radius;
+    std::f64::consts::PI * r * r * (c.height() + 4.0 / 3.0 * r)
+}
+
+/// The main axis of `points` (unit; z when they are all one point).
+fn main_axis(points: &[Point3<f64>]) -> Vector3<f64> {
+    let n = points.len().max(1) as f64;
+    let mean = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let cov = points.iter().fold(Matrix3::zeros(), |m, p| {
+        let d = p.coords - mean;
+        m + d * d.transpose()
+    }) / n;
+    let eig = SymmetricEigen::new(cov);
+    let k = eig.eigenvalues.imax();
+    let axis = eig.eigenvectors.column(k).into_owned();
+    if axis.norm() > 1e-12 && eig.eigenvalues[k] > 1e-18 {
+        axis.normalize()
+    } else {
+        Vector3::z()
+    }
+}
+
+/// The tightest capsule along `points`' main axis that holds them all.
+pub fn enclosing_capsule(points: &[Point3<f64>]) -> Capsule {
+    let u = main_axis(points);
+    // Two axes across u.
+    let helper = if u.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let v = u.cross(&helper).normalize();
+    let w = u.cross(&v);
+    // The axis line passes through the middle of the corners' extent
+    // across it.
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in points {
+        for (k, e) in [v, w].iter().enumerate() {
+            let s = p.coords.dot(e);
+            lo[k] = lo[k].min(s);
+            hi[k] = hi[k].max(s);
+        }
+    }
+    let centre = v * 0.5 * (lo[0] + hi[0]) + w * 0.5 * (lo[1] + hi[1]);
+    let across = |p: &Point3<f64>| {
+        let d = p.coords - centre;
+        (d - u * d.dot(&u)).norm()
+    };
+    let radius = points.iter().map(across).fold(0.0, f64::max);
+    // The shortest segment [t_lo, t_hi] keeping each point within
+    // `radius`: a point at t with offset d needs t_lo ≤ t + √(r² − d²)
+    // and t_hi ≥ t − √(r² − d²).
+    let (mut t_lo, mut t_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for p in points {
+        let t = p.coords.dot(&u);
+        let reach = (radius * radius - across(p).powi(2)).max(0.0).sqrt();
+        t_lo = t_lo.min(t + reach);
+        t_hi = t_hi.max(t - reach);
+    }
+    if t_lo > t_hi {
+        let mid = 0.5 * (t_lo + t_hi);
+        (t_lo, t_hi) = (mid, mid);
+    }
+    let a = Point3::from(centre + u * t_lo);
+    let b = Point3::from(centre + u * t_hi);
+    // Exact up to rounding: the radius is re-measured from the segment.
+    let radius = points
+        .iter()
+        .map(|p| distance_to_segment(p, &a, &b))
+        .fold(radius, f64::max);
+    Capsule {
+        a,
+        b,
+        radius: radius * (1.0 + 1e-9) + 1e-12,
+    }
+}
+
+/// Distance from `p` to the segment [a, b].
+pub fn distance_to_segment(p: &Point3<f64>, a: &Point3<f64>, b: &Point3<f64>) -> f64 {
+    let ab = b - a;
+    let t = if ab.norm_squared() > 0.0 {
+        ((p - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (p - (a + ab * t)).norm()
+}
+
+/// Fits one to [`MAX_CAPSULES`] capsules around `triangles` (see the
+/// module's documentation). `None` for an empty mesh.
+pub fn fit_capsules(triangles: &[[Point3<f64>; 3]]) -> Option<MeshFit> {
+    if triangles.is_empty() {
+        return None;
+    }
+    let corners: Vec<Point3<f64>> = triangles.iter().flatten().copied().collect();
+    let u = main_axis(&corners);
+    let centroid = |t: &[Point3<f64>; 3]| (t[0].coords + t[1].coords + t[2].coords).dot(&u) / 3.0;
+    let (lo, hi) = triangles
+        .iter()
+        .map(centroid)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
+            (a.min(c), b.max(c))
+        });
+    let mut best: Option<(Vec<Capsule>, f64)> = None;
+    for k in 1..=MAX_CAPSULES {
+        let width = (hi - lo) / k as f64;
+        let mut slices: Vec<Vec<Point3<f64>>> = vec![Vec::new(); k];
+        for t in triangles {
+            let s = if width > 0.0 {
+                (((centroid(t) - lo) / width) as usize).min(k - 1)
+            } else {
+                0
+            };
+            slices[s].extend_from_slice(t);
+        }
+        let capsules: Vec<Capsule> = slices
+            .iter()
+            .filter(|s| !s.is_empty())
+            .map(|s| enclosing_capsule(s))
+            .collect();
+        let volume: f64 = capsules.iter().map(capsule_volume).sum();
+        if best
+            .as_ref()
+            .is_none_or(|(_, v)| volume < v * (1.0 - SPLIT_GAIN))
+        {
+            best = Some((capsules, volume));
+        }
+    }
+    let (capsules, volume) = best?;
+    let hull = convex_hull_volume(&corners);
+    Some(MeshFit {
+        capsules,
+        volume_ratio: hull.filter(|h| *h > 1e-12).map(|h| volume / h),
+        triangles: triangles.len(),
+    })
+}
+
+/// Volume of the convex hull of `points` (`None` when it is flat).
+fn convex_hull_volume(points: &[Point3<f64>]) -> Option<f64> {
+    let glam: Vec<Vec3> = points.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect();
+    let (vertices, faces) = parry3d_f64::transformation::try_convex_hull(&glam).ok()?;
+    // Divergence theorem over the hull's faces, from its first vertex.
+    let origin = *vertices.first()?;
+    let volume: f64 = faces
+        .iter()
+        .filter_map(|f| {
+            let corner = |k: usize| vertices.get(f[k] as usize).map(|v| *v - origin);
+            Some(corner(0)?.dot(corner(1)?.cross(corner(2)?)) / 6.0)
+        })
+        .sum();
+    Some(volume.abs())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn inside(c: &Capsule, p: &Point3<f64>) -> bool {
+        c.contains(p)
+    }
+
+    /// A cylinder's side mesh (radius 4 cm, 30 cm long, along a tilted
+    /// axis): one capsule of about its radius holds every corner.
+    #[test]
+    fn a_cylinder_gets_one_snug_capsule_that_holds_it() {
+        let axis = Vector3::new(0.3, -0.2, 1.0).normalize();
+        let v = axis.cross(&Vector3::x()).normalize();
+        let w = axis.cross(&v);
+        let ring = |z: f64, k: usize| {
+            let a = k as f64 * std::f64::consts::TAU / 24.0;
+            Point3::from(axis * z + (v * a.cos() + w * a.sin()) * 0.04)
+        };
+        let mut triangles = Vec::new();
+        for k in 0..24 {
+            for z in [0.0, 0.1, 0.2] {
+                triangles.push([ring(z, k), ring(z, k + 1), ring(z + 0.1, k)]);
+                triangles.push([ring(z, k + 1), ring(z + 0.1, k + 1), ring(z + 0.1, k)]);
+            }
+        }
+        let fit = fit_capsules(&triangles).unwrap();
+        assert_eq!(fit.capsules.len(), 1);
+        let c = &fit.capsules[0];
+        assert!((c.radius - 0.04).abs() < 1e-3, "radius {}", c.radius);
+        assert!(c.height() < 0.3, "segment {}", c.height());
+        for t in &triangles {
+            assert!(t.iter().all(|p| inside(c, p)));
+        }
+        let ratio = fit.volume_ratio.unwrap();
+        assert!((1.0..1.6).contains(&ratio), "volume ratio {ratio}");
+    }
+
+    /// An L-shaped link (two bars at right angles) is worth two or three
+    /// capsules, and every corner of every triangle is inside one of them.
+    #[test]
+    fn an_elbow_is_split_and_stays_enclosed() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut jitter = |p: Vector3<f64>| {
+            Point3::from(
+                p + Vector3::new(
+                    rng.random_range(-0.02..0.02),
+                    rng.random_range(-0.02..0.02),
+                    rng.random_range(-0.02..0.02),
+                ),
+            )
+        };
+        let mut triangles = Vec::new();
+        for k in 0..40 {
+            let s = k as f64 / 40.0 * 0.4;
+            let a = Vector3::new(s, 0.0, 0.0);
+            let b = Vector3::new(0.4, 0.0, s);
+            triangles.push([jitter(a), jitter(a), jitter(a)]);
+            triangles.push([jitter(b), jitter(b), jitter(b)]);
+        }
+        let fit = fit_capsules(&triangles).unwrap();
+        assert!(fit.capsules.len() >= 2, "{} capsules", fit.capsules.len());
+        for t in &triangles {
+            for p in t {
+                assert!(fit.capsules.iter().any(|c| inside(c, p)), "{p} outside");
+            }
+        }
+        let one: f64 = capsule_volume(&enclosing_capsule(
+            &triangles.iter().flatten().copied().collect::<Vec<_>>(),
+        ));
+        let split: f64 = fit.capsules.iter().map(capsule_volume).sum();
+        assert!(split < one * (1.0 - SPLIT_GAIN));
+    }
+
+    #[test]
+    fn an_empty_mesh_has_no_fit() {
+        assert!(fit_capsules(&[]).is_none());
+    }
+}
