@@ -4,7 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
+use treemanip::robot::chain::Chain;
 use treemanip::robot::link_geometry::{LinkShape, link_geometry_of_file, package_path_from_env};
+use treemanip::robot::self_collision::{DisableReason, disabled_pairs};
 
 #[derive(Subcommand)]
 pub enum RobotCommand {
@@ -22,6 +24,17 @@ pub struct ShapesArgs {
     /// (before `TREEMANIP_PACKAGE_PATH` and the URDF's own ancestors).
     #[arg(long = "package-path", value_delimiter = ':')]
     package_path: Vec<PathBuf>,
+    /// First link of the planning chain (default: the URDF's root).
+    #[arg(long)]
+    base: Option<String>,
+    /// Last link of the planning chain (default: the end of its only
+    /// serial chain).
+    #[arg(long)]
+    tip: Option<String>,
+    /// Random configurations sampled for the self-collision pairs that
+    /// need no check (0: skip).
+    #[arg(long, default_value_t = 1000)]
+    samples: usize,
 }
 
 pub fn run(command: RobotCommand) -> anyhow::Result<()> {
@@ -80,6 +93,32 @@ fn shapes(args: ShapesArgs) -> anyhow::Result<()> {
             kinds.join(", "),
             meshes.join(", ")
         );
+    }
+    if args.samples > 0 {
+        let text = std::fs::read_to_string(&args.urdf)
+            .with_context(|| format!("reading {}", args.urdf.display()))?;
+        let robot = treemanip::robot::chain::parse_urdf(&text)?;
+        let chain = Chain::from_robot(&robot, args.base.as_deref(), args.tip.as_deref())?;
+        let pairs = disabled_pairs(&robot, &chain, &links, args.samples, 0);
+        println!(
+            "\nself-collision pairs left unchecked ({} random configurations of the {}-joint chain {} → {}):",
+            args.samples,
+            chain.dof(),
+            chain.base_link,
+            chain.tip_link
+        );
+        for reason in [
+            DisableReason::Adjacent,
+            DisableReason::Never,
+            DisableReason::Always,
+        ] {
+            let names: Vec<String> = pairs
+                .iter()
+                .filter(|p| p.reason == reason)
+                .map(|p| format!("{}–{}", p.a, p.b))
+                .collect();
+            println!("{reason:?} ({}): {}", names.len(), names.join(", "));
+        }
     }
     Ok(())
 }

@@ -98,6 +98,11 @@ fn isometry(pose: &urdf_rs::Pose) -> Isometry3<f64> {
     )
 }
 
+/// Parses a URDF document (errors as [`ChainError::Parse`]).
+pub fn parse_urdf(urdf: &str) -> Result<urdf_rs::Robot, ChainError> {
+    urdf_rs::read_from_string(urdf).map_err(|e| ChainError::Parse(e.to_string()))
+}
+
 impl Chain {
     /// The chain of `urdf` from `base` (default: the root link) to `tip`
     /// (default: the end of its only serial chain).
@@ -106,9 +111,7 @@ impl Chain {
         base: Option<&str>,
         tip: Option<&str>,
     ) -> Result<Self, ChainError> {
-        let robot =
-            urdf_rs::read_from_string(urdf).map_err(|e| ChainError::Parse(e.to_string()))?;
-        Self::from_robot(&robot, base, tip)
+        Self::from_robot(&parse_urdf(urdf)?, base, tip)
     }
 
     pub fn from_robot(

@@ -13,6 +13,7 @@ pub mod plan;
 pub mod ros;
 pub mod rrt;
 pub mod scene;
+pub mod self_collision;
 pub mod timing;
 pub mod trajectory;
 pub mod ur5;
