@@ -19,6 +19,7 @@ mod planner;
 mod readme_examples;
 mod robot_chain;
 mod robot_collision;
+mod robot_description;
 mod robot_geometry;
 mod robot_model;
 mod robot_plan;

@@ -14,6 +14,23 @@ pub enum RobotCommand {
     /// primitives as they are, meshes replaced by the capsules that enclose
     /// them, with how snugly (capsule volume over the mesh's convex hull).
     Shapes(ShapesArgs),
+    /// Write a self-contained robot description (chain, limits, fitted
+    /// collision shapes, self-collision pairs) from a robot configuration
+    /// (TOML naming the URDF; see docs/robot.md): it loads without the
+    /// URDF or its meshes.
+    Import(ImportArgs),
+}
+
+#[derive(Args)]
+pub struct ImportArgs {
+    /// The robot configuration (TOML).
+    config: PathBuf,
+    /// Where to write the description (e.g. robots/panda.toml).
+    #[arg(long)]
+    out: PathBuf,
+    /// Directories that contain package folders, for `package://` meshes.
+    #[arg(long = "package-path", value_delimiter = ':')]
+    package_path: Vec<PathBuf>,
 }
 
 #[derive(Args)]
@@ -40,7 +57,39 @@ pub struct ShapesArgs {
 pub fn run(command: RobotCommand) -> anyhow::Result<()> {
     match command {
         RobotCommand::Shapes(args) => shapes(args),
+        RobotCommand::Import(args) => import(args),
     }
+}
+
+fn import(args: ImportArgs) -> anyhow::Result<()> {
+    let mut packages = args.package_path.clone();
+    packages.extend(package_path_from_env());
+    let command = format!(
+        "treemanip robot import {} --out {}",
+        args.config.display(),
+        args.out.display()
+    );
+    let description = treemanip::robot::description::import(&args.config, &packages, &command)?;
+    let text = description.to_toml().map_err(|e| anyhow::anyhow!(e))?;
+    // What is written must load.
+    treemanip::robot::description::RobotDescription::from_toml_str(&text, &args.out)?;
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)?;
+    }
+    let header = format!(
+        "# {} ({} joints, {} → {}): written by `{command}`; do not edit, re-import.\n",
+        description.name, description.dof, description.base_link, description.tip_link
+    );
+    std::fs::write(&args.out, header + &text)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    eprintln!(
+        "wrote {}: {} joints, {} links with shapes, {} self-collision pairs unchecked",
+        args.out.display(),
+        description.dof,
+        description.links.len(),
+        description.disabled_pairs.len()
+    );
+    Ok(())
 }
 
 fn shapes(args: ShapesArgs) -> anyhow::Result<()> {

@@ -3,6 +3,7 @@
 
 pub mod chain;
 pub mod collision;
+pub mod description;
 pub mod dh;
 pub mod execution;
 pub mod ik;

@@ -33,6 +33,8 @@ pub enum DisableReason {
     Adjacent,
     Never,
     Always,
+    /// Named in the robot's configuration.
+    Configured,
 }
 
 /// A pair of links left out of self-collision checks.
