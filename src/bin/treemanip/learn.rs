@@ -275,7 +275,7 @@ fn dataset_seed(dir: &Path) -> Option<u64> {
 /// The `dataset collect` command that regenerates the data in `dir`, from
 /// its `summary.json`: the seed and every option that differs from the
 /// default (stiffness perturbations, contact, trees per size).
-fn dataset_command(dir: &Path) -> Option<String> {
+pub(crate) fn dataset_command(dir: &Path) -> Option<String> {
     let text = std::fs::read_to_string(dir.join("summary.json")).ok()?;
     let v: serde_json::Value = serde_json::from_str(&text).ok()?;
     let config = &v["config"];
