@@ -6,9 +6,10 @@
 //!     cargo bench --bench ik                  (10,000 poses per arm)
 //!     IK_POSES=1000 cargo bench --bench ik
 //!
-//! The Panda is read from the URDF the `example-robot-data` package ships
-//! (`pip install -r requirements-dev.txt`); it is left out when that is not
-//! installed. Asserts nothing; run with nothing else busy on the machine.
+//! The UR5 is the built-in one (its closed form beside it); the others are
+//! the shipped descriptions in `robots/` (UR5 and UR10 as ROS-Industrial
+//! describes them, Franka Panda, KUKA iiwa). Asserts nothing; run with
+//! nothing else busy on the machine.
 
 use std::time::Instant;
 
@@ -16,20 +17,24 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use treemanip::eval::plan::percentile;
 use treemanip::robot::chain::Chain;
+use treemanip::robot::description::RobotDescription;
 use treemanip::robot::ik_numeric::{IkOptions, random_configuration, solve};
 use treemanip::robot::{Ur5, ur5};
 
-fn panda() -> Option<Chain> {
-    let out = std::process::Command::new("python3")
-        .args([
-            "-c",
-            "import sysconfig, os; print(os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share', 'example-robot-data', 'robots', 'panda_description', 'urdf', 'panda.urdf'))",
-        ])
-        .output()
-        .ok()?;
-    let path = String::from_utf8_lossy(&out.stdout).trim().to_owned();
-    let text = std::fs::read_to_string(path).ok()?;
-    Chain::from_urdf_str(&text, Some("panda_link0"), Some("panda_hand")).ok()
+/// The shipped robot descriptions (`robots/*.toml`): name, chain, home.
+fn shipped() -> Vec<(String, Chain, Vec<f64>)> {
+    ["ur5", "ur10", "panda", "iiwa"]
+        .iter()
+        .map(|name| {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("robots")
+                .join(format!("{name}.toml"));
+            let text = std::fs::read_to_string(&path).unwrap();
+            let d = RobotDescription::from_toml_str(&text, &path).unwrap();
+            let chain = d.chain().unwrap();
+            (format!("{name} ({} joints)", d.dof), chain, d.home.clone())
+        })
+        .collect()
 }
 
 fn report(name: &str, times_us: &mut [f64], solved: usize, poses: usize) {
@@ -55,13 +60,8 @@ fn main() {
         "arm / solver", "success", "p50 µs", "p95 µs", "mean µs"
     );
     let ur5_chain = Chain::from_urdf_str(ur5::URDF, Some("base_link"), Some("tool")).unwrap();
-    let mut arms = vec![("UR5", ur5_chain.clone(), ur5::HOME.to_vec())];
-    if let Some(p) = panda() {
-        let reference = p.limits().iter().map(|(lo, hi)| (lo + hi) / 2.0).collect();
-        arms.push(("Franka Panda (7 joints)", p, reference));
-    } else {
-        println!("(Panda left out: example-robot-data is not installed)");
-    }
+    let mut arms = vec![("UR5".to_owned(), ur5_chain.clone(), ur5::HOME.to_vec())];
+    arms.extend(shipped());
     for (name, chain, reference) in &arms {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         let goals: Vec<_> = (0..poses)
@@ -80,7 +80,7 @@ fn main() {
             solved += usize::from(q.is_some());
         }
         report(&format!("{name}, numerical"), &mut times, solved, poses);
-        if *name == "UR5" {
+        if name == "UR5" {
             // The closed form on the same poses (tool frame, base at the
             // origin), the fast path for UR kinematics.
             let arm = Ur5::default().with_base(nalgebra::Isometry3::identity());

@@ -307,6 +307,72 @@ fn physics_search_is_no_worse_than_the_papers_pick_with_a_base_region() {
     );
 }
 
+/// A tilted mount (the base rolled, pitched and turned): the plan keeps
+/// the base as given, and its trajectory is valid and pushes straight in
+/// the tree's frame (`check_plan` runs the forward kinematics from the
+/// plan's base).
+#[test]
+fn a_tilted_base_plans_in_the_trees_frame() {
+    let set = models();
+    let (policy, forward) = (
+        set.get("policy_gnn").unwrap(),
+        set.get("forward_gnn").unwrap(),
+    );
+    let planner = Planner::default();
+    let tilted = treemanip::planner::base::BasePose {
+        position: [-0.5, 0.0, 0.1],
+        yaw: 0.2,
+        roll: 0.15,
+        pitch: -0.1,
+    };
+    let mut planned = 0;
+    for (n, seed) in [
+        (10usize, 3u64),
+        (12, 11),
+        (14, 5),
+        (10, 7),
+        (11, 2),
+        (12, 4),
+    ] {
+        let (tree, targets) = episode(n, seed);
+        let mut q = query(&tree, &targets, Strategy::Physics, false);
+        q.stance = Stance::Fixed(tilted.isometry());
+        // As the shape benchmark: no load limits.
+        q.limits = None;
+        let plan = planner.plan(&q, policy, Some(forward)).unwrap();
+        let b = plan.base;
+        assert!(
+            (Vector3::from(b.position) - Vector3::from(tilted.position)).norm() < 1e-12
+                && (b.roll - tilted.roll).abs() < 1e-12
+                && (b.pitch - tilted.pitch).abs() < 1e-12
+                && (b.yaw - tilted.yaw).abs() < 1e-12,
+            "{b:?}"
+        );
+        check_plan(&plan, &q);
+        if let Some(p) = &plan.plan {
+            // The push runs along the planned push in the tree's frame: the
+            // chain's tool, placed by the tilted base.
+            let e = p.execution.as_ref().unwrap();
+            let points = &e.joint_trajectory.points;
+            let chain = treemanip::robot::chain::Chain::from_urdf_str(
+                treemanip::robot::ur5::URDF,
+                Some("base_link"),
+                Some("tool"),
+            )
+            .unwrap();
+            let tool = |k: usize| {
+                (tilted.isometry() * chain.tip_pose(&points[k].positions))
+                    .translation
+                    .vector
+            };
+            let travel = tool(e.push_end_point) - tool(e.push_start_point);
+            assert!(travel.normalize().dot(&p.push.normalize()) > 1.0 - 1e-9);
+            planned += 1;
+        }
+    }
+    assert!(planned >= 1, "no tilted plan at all");
+}
+
 #[test]
 fn obstacles_are_respected_and_named() {
     let set = models();

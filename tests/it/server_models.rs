@@ -366,6 +366,16 @@ fn policy_ranks_every_pushable_node_and_plan_runs_algorithm_1() {
     }
     assert_eq!(answer["joint_names"].as_array().unwrap().len(), 6);
 
+    // A tilted mount is answered in kind.
+    let mut tilted = plan.clone();
+    tilted["robot"] = json!({"base": [-0.5, 0.0, 0.1], "base_rpy": [0.1, -0.05, 0.2]});
+    let (status, answer) = server.json("POST", "/v1/plan", &tilted);
+    assert_eq!(status, 200, "{answer}");
+    for (key, value) in [("roll", 0.1), ("pitch", -0.05), ("yaw", 0.2)] {
+        let got = answer["base"][key].as_f64().unwrap();
+        assert!((got - value).abs() < 1e-12, "{key}: {got}");
+    }
+
     // Bad robot settings and budgets.
     let bad = |key: &str, value: Value| {
         let mut body = plan.clone();
@@ -377,6 +387,24 @@ fn policy_ranks_every_pushable_node_and_plan_runs_algorithm_1() {
         (bad("budget_ms", json!(-1)), "budget_ms"),
         (bad("robot", json!({"start": [0.0, 1.0]})), "robot.start"),
         (bad("robot", json!({"base": [9.0, 0.0, 0.0]})), "robot.base"),
+        (
+            bad(
+                "robot",
+                json!({"base": [-0.5, 0.0, 0.1], "base_rpy": [0.1, 0.2]}),
+            ),
+            "robot.base_rpy",
+        ),
+        (
+            bad(
+                "robot",
+                json!({"base": [-0.5, 0.0, 0.1], "base_rpy": [0.1, 0.2, 9.0]}),
+            ),
+            "robot.base_rpy",
+        ),
+        (
+            bad("robot", json!({"base_rpy": [0.1, 0.0, 0.0]})),
+            "robot.base_rpy",
+        ),
         (
             bad(
                 "robot",

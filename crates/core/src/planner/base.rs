@@ -2,7 +2,7 @@
 //! grip point along the push, within the allowed region, each turned to
 //! face the grip point (the way the paper's fixed mount faces the tree).
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
 use crate::robot::rrt::Config;
@@ -19,26 +19,51 @@ pub struct BaseRegion {
     pub yaw: Option<(f64, f64)>,
 }
 
-/// Where the arm's `base_link` stands and which way it faces.
+/// Where the arm's `base_link` stands and how it is turned: `yaw` about
+/// the vertical axis, and for a tilted or hanging mount `roll` and `pitch`
+/// (rad; the URDF's fixed-axis roll, pitch, yaw: R = Rz(yaw) Ry(pitch)
+/// Rx(roll)).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct BasePose {
     /// m, tree frame.
     pub position: [f64; 3],
     /// Rotation about the vertical axis (rad).
     pub yaw: f64,
+    /// Tilt about the base's x axis (rad; 0 upright, π hanging).
+    pub roll: f64,
+    /// Tilt about the base's y axis (rad).
+    pub pitch: f64,
 }
 
 impl BasePose {
-    pub fn isometry(&self) -> Isometry3<f64> {
-        Isometry3::new(Vector3::from(self.position), Vector3::z() * self.yaw)
+    /// An upright base at `position` turned by `yaw`.
+    pub fn upright(position: [f64; 3], yaw: f64) -> Self {
+        Self {
+            position,
+            yaw,
+            roll: 0.0,
+            pitch: 0.0,
+        }
     }
 
-    /// The pose of a base given as an isometry (its heading read from it).
+    pub fn isometry(&self) -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::from(Vector3::from(self.position)),
+            UnitQuaternion::from_euler_angles(self.roll, self.pitch, self.yaw),
+        )
+    }
+
+    /// The pose of a base given as an isometry.
     pub fn of(iso: &Isometry3<f64>) -> Self {
         let t = iso.translation.vector;
+        let (roll, pitch, yaw) = iso.rotation.euler_angles();
+        // An upright base reads exactly 0 (not −0.0 or 1e-17).
+        let tidy = |a: f64| if a.abs() < 1e-12 { 0.0 } else { a };
         Self {
             position: [t.x, t.y, t.z],
-            yaw: iso.rotation.euler_angles().2,
+            yaw,
+            roll: tidy(roll),
+            pitch: tidy(pitch),
         }
     }
 }
@@ -79,10 +104,7 @@ pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push) -> Vec<BasePose>
                 if let Some((lo, hi)) = region.yaw {
                     yaw = yaw.clamp(lo, hi);
                 }
-                let pose = BasePose {
-                    position: [position.x, position.y, position.z],
-                    yaw,
-                };
+                let pose = BasePose::upright([position.x, position.y, position.z], yaw);
                 let duplicate = out.iter().any(|b| {
                     (Vector3::from(b.position) - position).norm() < 0.02
                         && (b.yaw - yaw).abs() < 0.05

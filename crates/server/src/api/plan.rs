@@ -4,7 +4,6 @@
 use std::time::Duration;
 
 use axum::extract::State;
-use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
@@ -41,9 +40,13 @@ pub struct BaseRegionJson {
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotJson {
-    /// Arm base position (m), identity orientation; default (−0.5, 0, 0.1).
+    /// Arm base position (m); default (−0.5, 0, 0.1).
     #[serde(default)]
     pub base: Option<Vec<f64>>,
+    /// The fixed base's orientation [roll, pitch, yaw] (rad, the URDF's
+    /// convention); default upright, facing +x. Roll π hangs the arm.
+    #[serde(default)]
+    pub base_rpy: Option<Vec<f64>>,
     /// A box the planner may place the base in (instead of `base`).
     #[serde(default)]
     pub base_region: Option<BaseRegionJson>,
@@ -183,6 +186,26 @@ fn invalid(field: &str, message: impl Into<String>) -> ApiError {
     ApiError::invalid_field(field, message)
 }
 
+/// `robot.base_rpy`, checked (default upright).
+fn base_rpy(robot: &RobotJson) -> Result<[f64; 3], ApiError> {
+    let Some(v) = &robot.base_rpy else {
+        return Ok([0.0; 3]);
+    };
+    match v.as_slice() {
+        [r, p, y]
+            if [r, p, y]
+                .iter()
+                .all(|a| a.is_finite() && a.abs() <= 2.0 * std::f64::consts::PI) =>
+        {
+            Ok([*r, *p, *y])
+        }
+        _ => Err(invalid(
+            "robot.base_rpy",
+            "`robot.base_rpy` must be [roll, pitch, yaw], finite, within ±2π rad",
+        )),
+    }
+}
+
 pub(crate) fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
     match (&robot.base, &robot.base_region) {
         (Some(_), Some(_)) => Err(invalid(
@@ -191,9 +214,26 @@ pub(crate) fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
         )),
         (Some(b), None) => {
             let p = near_point(b, "robot.base")?;
-            Ok(Stance::Fixed(Isometry3::translation(p.x, p.y, p.z)))
+            let [roll, pitch, yaw] = base_rpy(robot)?;
+            Ok(Stance::Fixed(
+                BasePose {
+                    position: [p.x, p.y, p.z],
+                    yaw,
+                    roll,
+                    pitch,
+                }
+                .isometry(),
+            ))
         }
+        (None, None) if robot.base_rpy.is_some() => Err(invalid(
+            "robot.base_rpy",
+            "`robot.base_rpy` orients a fixed base: give `robot.base` with it",
+        )),
         (None, None) => Ok(Stance::Fixed(ur5::default_base())),
+        (None, Some(_)) if robot.base_rpy.is_some() => Err(invalid(
+            "robot.base_rpy",
+            "`robot.base_rpy` orients a fixed base; a base region chooses its own heading (`robot.base_region.yaw`)",
+        )),
         (None, Some(region)) => {
             let min = near_point(&region.min, "robot.base_region.min")?.coords;
             let max = near_point(&region.max, "robot.base_region.max")?.coords;

@@ -135,6 +135,11 @@ pub struct BaseJson {
     /// Rotation about the vertical axis (rad).
     #[serde(default)]
     pub yaw: f64,
+    /// Tilt of a tilted or hanging mount (rad; see `robot.base_rpy`).
+    #[serde(default)]
+    pub roll: f64,
+    #[serde(default)]
+    pub pitch: f64,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -199,15 +204,19 @@ pub async fn link_poses(
         None => BasePose::of(&ur5::default_base()),
         Some(b) => {
             let p: Point3<f64> = super::validate::near_point(&b.position, "base.position")?;
-            if !(b.yaw.is_finite() && b.yaw.abs() <= 2.0 * std::f64::consts::PI) {
-                return Err(ApiError::invalid_argument(
-                    "`base.yaw` must be finite, within ±2π rad",
-                )
-                .with_details(json!({"field": "base.yaw"})));
+            for (name, v) in [("yaw", b.yaw), ("roll", b.roll), ("pitch", b.pitch)] {
+                if !(v.is_finite() && v.abs() <= 2.0 * std::f64::consts::PI) {
+                    return Err(ApiError::invalid_argument(format!(
+                        "`base.{name}` must be finite, within ±2π rad"
+                    ))
+                    .with_details(json!({"field": format!("base.{name}")})));
+                }
             }
             BasePose {
                 position: [p.x, p.y, p.z],
                 yaw: b.yaw,
+                roll: b.roll,
+                pitch: b.pitch,
             }
         }
     };
