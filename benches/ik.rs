@@ -80,6 +80,24 @@ fn main() {
             solved += usize::from(q.is_some());
         }
         report(&format!("{name}, numerical"), &mut times, solved, poses);
+        if let Some(ur) = treemanip::robot::ur_kinematics::UrKinematics::detect(chain) {
+            // The closed form derived from the URDF, on the same poses.
+            let reference: [f64; 6] = std::array::from_fn(|i| reference[i]);
+            let mut times = Vec::with_capacity(poses);
+            let mut solved = 0;
+            for goal in &goals {
+                let started = Instant::now();
+                let solutions = ur.solve(goal, &reference);
+                times.push(started.elapsed().as_secs_f64() * 1e6);
+                solved += usize::from(!solutions.is_empty());
+            }
+            report(
+                &format!("{name}, closed form (fitted DH)"),
+                &mut times,
+                solved,
+                poses,
+            );
+        }
         if name == "UR5" {
             // The closed form on the same poses (tool frame, base at the
             // origin), the fast path for UR kinematics.

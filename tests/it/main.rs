@@ -26,6 +26,7 @@ mod robot_plan;
 mod robot_ros;
 mod robot_rrt;
 mod robot_timing;
+mod robot_ur_kinematics;
 mod sca;
 mod schemathesis;
 mod server_adversarial;

@@ -14,23 +14,47 @@ use nalgebra::{Matrix4, Vector4};
 
 use super::dh::{DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
 
-/// One DH link transform Rz(θ) Tz(d) Tx(a) Rx(α).
+/// The lengths of a UR arm's DH model (m); the twists α are the same for
+/// every UR (±π/2 at joints 1, 4 and 5).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UrDh {
+    pub d: [f64; 6],
+    pub a: [f64; 6],
+}
+
+/// The UR5's (Universal Robots' published parameters).
+pub const UR5_DH: UrDh = UrDh { d: DH_D, a: DH_A };
+
+/// One DH link transform Rz(θ) Tz(d) Tx(a) Rx(α) of the UR5.
 pub fn dh_transform(i: usize, theta: f64) -> Matrix4<f64> {
+    dh_transform_with(&UR5_DH, i, theta)
+}
+
+/// One DH link transform Rz(θ) Tz(d) Tx(a) Rx(α) of the arm `dh`.
+pub fn dh_transform_with(dh: &UrDh, i: usize, theta: f64) -> Matrix4<f64> {
     let (ct, st) = (theta.cos(), theta.sin());
     let (ca, sa) = (DH_ALPHA[i].cos(), DH_ALPHA[i].sin());
+    let (a, d) = (dh.a[i], dh.d[i]);
     #[rustfmt::skip]
     let m = Matrix4::new(
-        ct, -st * ca,  st * sa, DH_A[i] * ct,
-        st,  ct * ca, -ct * sa, DH_A[i] * st,
-        0.0,      sa,       ca, DH_D[i],
+        ct, -st * ca,  st * sa, a * ct,
+        st,  ct * ca, -ct * sa, a * st,
+        0.0,      sa,       ca, d,
         0.0,     0.0,      0.0, 1.0,
     );
     m
 }
 
-/// Flange pose in the DH base frame.
+/// Flange pose in the DH base frame (UR5).
 pub fn forward(q: &[f64; 6]) -> Matrix4<f64> {
-    (0..6).fold(Matrix4::identity(), |t, i| t * dh_transform(i, q[i]))
+    forward_with(&UR5_DH, q)
+}
+
+/// Flange pose in the DH base frame of the arm `dh`.
+pub fn forward_with(dh: &UrDh, q: &[f64; 6]) -> Matrix4<f64> {
+    (0..6).fold(Matrix4::identity(), |t, i| {
+        t * dh_transform_with(dh, i, q[i])
+    })
 }
 
 /// Below this |sin θ5| the wrist counts as singular.
@@ -40,8 +64,14 @@ const WRIST_SINGULAR: f64 = 1e-9;
 /// joint in (−π, π]. `reference` supplies θ6 at a wrist singularity.
 /// Empty when the pose is out of reach.
 pub fn solve(t06: &Matrix4<f64>, reference: &[f64; 6]) -> Vec<[f64; 6]> {
-    let (d4, d6) = (DH_D[3], DH_D[5]);
-    let (a2, a3) = (DH_A[1], DH_A[2]);
+    solve_with(&UR5_DH, t06, reference)
+}
+
+/// [`solve`] for the UR arm `dh`.
+pub fn solve_with(dh: &UrDh, t06: &Matrix4<f64>, reference: &[f64; 6]) -> Vec<[f64; 6]> {
+    let dh_transform = |i: usize, theta: f64| dh_transform_with(dh, i, theta);
+    let (d4, d6) = (dh.d[3], dh.d[5]);
+    let (a2, a3) = (dh.a[1], dh.a[2]);
     let mut out = Vec::with_capacity(8);
 
     // θ1 from the wrist centre p05 (the flange pulled back by d6).

@@ -18,5 +18,6 @@ pub mod self_collision;
 pub mod timing;
 pub mod trajectory;
 pub mod ur5;
+pub mod ur_kinematics;
 
 pub use ur5::Ur5;
