@@ -89,7 +89,8 @@ pub struct Chain {
     pub joints: Vec<ChainJoint>,
 }
 
-fn isometry(pose: &urdf_rs::Pose) -> Isometry3<f64> {
+/// A URDF `<origin>` as an isometry (fixed-axis roll, pitch, yaw).
+pub(crate) fn isometry(pose: &urdf_rs::Pose) -> Isometry3<f64> {
     let [x, y, z] = pose.xyz.0;
     let [r, p, yaw] = pose.rpy.0;
     Isometry3::from_parts(

@@ -20,8 +20,9 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
+use super::chain::isometry;
 use super::mesh_fit::{Capsule, fit_capsules};
 
 /// The environment variable listing package directories.
@@ -138,15 +139,6 @@ pub fn resolve_mesh(
                     .join(", ")
             },
         })
-}
-
-fn isometry(pose: &urdf_rs::Pose) -> Isometry3<f64> {
-    let [x, y, z] = pose.xyz.0;
-    let [r, p, yaw] = pose.rpy.0;
-    Isometry3::from_parts(
-        Translation3::new(x, y, z),
-        UnitQuaternion::from_euler_angles(r, p, yaw),
-    )
 }
 
 /// The triangles of the mesh at `file`, scaled and placed by `pose`.

@@ -16,13 +16,13 @@
 use std::collections::HashMap;
 
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
-use parry3d_f64::math::{Pose, Rot3, Vec3};
 use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, Shape};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::chain::Chain;
+use super::chain::{Chain, isometry};
+use super::collision::{pose, vec3};
 use super::ik_numeric::random_configuration;
 use super::link_geometry::{LinkGeometry, LinkShape};
 
@@ -43,18 +43,6 @@ pub struct DisabledPair {
     pub a: String,
     pub b: String,
     pub reason: DisableReason,
-}
-
-fn vec3(v: &Vector3<f64>) -> Vec3 {
-    Vec3::new(v.x, v.y, v.z)
-}
-
-fn to_pose(iso: &Isometry3<f64>) -> Pose {
-    let q = iso.rotation.quaternion();
-    Pose::from_parts(
-        vec3(&iso.translation.vector),
-        Rot3::from_xyzw(q.i, q.j, q.k, q.w),
-    )
 }
 
 /// Parry shapes, each with its pose in its link's frame.
@@ -138,12 +126,7 @@ pub fn all_link_poses(
                 }
                 None => values.get(j.name.as_str()).copied().unwrap_or(0.0),
             };
-            let [x, y, z] = j.origin.xyz.0;
-            let [r, p, w] = j.origin.rpy.0;
-            let origin = Isometry3::from_parts(
-                nalgebra::Translation3::new(x, y, z),
-                UnitQuaternion::from_euler_angles(r, p, w),
-            );
+            let origin = isometry(&j.origin);
             let axis = Vector3::from(j.axis.xyz.0);
             let axis = if axis.norm() > 0.0 {
                 axis.normalize()
@@ -247,9 +230,9 @@ pub fn disabled_pairs(
             let touch = shapes[i].1.iter().any(|(oi, si)| {
                 shapes[k].1.iter().any(|(ok, sk)| {
                     parry3d_f64::query::intersection_test(
-                        &to_pose(&(pi * oi)),
+                        &pose(&(pi * oi)),
                         si.as_ref(),
-                        &to_pose(&(pk * ok)),
+                        &pose(&(pk * ok)),
                         sk.as_ref(),
                     )
                     // An unsupported pair counts as touching: the pair

@@ -151,11 +151,12 @@ impl Aabb {
     }
 }
 
-fn vec3(v: &Vector3<f64>) -> Vec3 {
+pub(crate) fn vec3(v: &Vector3<f64>) -> Vec3 {
     Vec3::new(v.x, v.y, v.z)
 }
 
-fn pose(iso: &Isometry3<f64>) -> Pose {
+/// An isometry as parry's pose.
+pub(crate) fn pose(iso: &Isometry3<f64>) -> Pose {
     let q = iso.rotation.quaternion();
     Pose::from_parts(
         vec3(&iso.translation.vector),
