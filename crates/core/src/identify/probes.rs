@@ -117,17 +117,25 @@ pub fn choose_probes(
         let jac = super::fit::probe_jacobian(tree, &posterior.mean, &probe, config, &count)?;
         Some(jac.transpose() * jac)
     };
+    // The first TARGET_PUSHES of at most three times as many draws that
+    // simulate, their Jacobians computed a batch at a time (as many as are
+    // still missing) rather than for every draw up front.
     let mut rng = ChaCha8Rng::seed_from_u64(TARGET_SEED);
-    let sampled: Vec<Push> = (0..TARGET_PUSHES * 3)
-        .map(|_| PushDistribution::default().sample(tree, &mut rng))
-        .collect();
-    let targets: Vec<(Push, DMatrix<f64>)> = sampled
-        .par_iter()
-        .filter_map(|&p| jacobian_info(p).map(|info| (p, info)))
-        .collect::<Vec<_>>()
-        .into_iter()
-        .take(TARGET_PUSHES)
-        .collect();
+    let mut targets: Vec<(Push, DMatrix<f64>)> = Vec::with_capacity(TARGET_PUSHES);
+    let mut drawn = 0;
+    while targets.len() < TARGET_PUSHES && drawn < TARGET_PUSHES * 3 {
+        let take = (TARGET_PUSHES - targets.len()).min(TARGET_PUSHES * 3 - drawn);
+        drawn += take;
+        let batch: Vec<Push> = (0..take)
+            .map(|_| PushDistribution::default().sample(tree, &mut rng))
+            .collect();
+        targets.extend(
+            batch
+                .par_iter()
+                .filter_map(|&p| jacobian_info(p).map(|info| (p, info)))
+                .collect::<Vec<_>>(),
+        );
+    }
     let p = posterior.mean.len();
     // A: where predictions are sensitive to ln K, weighted by how often
     // the paper's pushes bend each path.
