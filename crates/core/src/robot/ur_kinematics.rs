@@ -117,47 +117,60 @@ fn residuals(
     DVector::from_vec(r)
 }
 
-/// Rotation of the chain's tip relative to its zero pose, at `q`, and the
-/// same for the DH model under `map`.
-fn relative_rotations(
-    chain: &Chain,
-    map: &JointMap,
-    q: &[f64],
-) -> (UnitQuaternion<f64>, UnitQuaternion<f64>) {
-    let zero = [0.0; 6];
-    let chain_rel = chain.tip_pose(&zero).rotation.inverse() * chain.tip_pose(q).rotation;
-    let dh = |q: &[f64]| {
-        let q6: [f64; 6] = std::array::from_fn(|i| map.0[i] * q[i] + map.1[i]);
-        to_iso(&forward_with(&UR5_DH, &q6)).rotation
-    };
-    (chain_rel, dh(&zero).inverse() * dh(q))
+/// The chain's fitting samples with their motions: each tip's rotation
+/// relative to the zero pose's (computed once, for every candidate map).
+struct Samples {
+    poses: Vec<(Vec<f64>, Isometry3<f64>)>,
+    motions: Vec<UnitQuaternion<f64>>,
+}
+
+impl Samples {
+    fn new(chain: &Chain, poses: Vec<(Vec<f64>, Isometry3<f64>)>) -> Self {
+        let zero = chain.tip_pose(&[0.0; 6]).rotation.inverse();
+        let motions = poses.iter().map(|(_, tip)| zero * tip.rotation).collect();
+        Self { poses, motions }
+    }
+}
+
+/// The DH model's tip rotation at joint values `q` under `map`.
+fn model_rotation(map: &JointMap, q: &[f64]) -> UnitQuaternion<f64> {
+    let q6: [f64; 6] = std::array::from_fn(|i| map.0[i] * q[i] + map.1[i]);
+    to_iso(&forward_with(&UR5_DH, &q6)).rotation
+}
+
+/// The DH model's motions under `map` at the samples' joint values, each
+/// relative to its zero pose (the lengths do not change rotations, so the
+/// UR5's stand in).
+fn model_motions<'a>(
+    map: &'a JointMap,
+    samples: &'a Samples,
+) -> impl Iterator<Item = UnitQuaternion<f64>> + 'a {
+    let zero = model_rotation(map, &[0.0; 6]).inverse();
+    samples
+        .poses
+        .iter()
+        .map(move |(q, _)| zero * model_rotation(map, q))
 }
 
 /// How far `map` is from explaining the chain's orientations: the
 /// rotation angle of a motion does not depend on the lengths or on the
 /// flange offset F (it conjugates the motion), so candidates are ranked
 /// before anything is fitted.
-fn orientation_mismatch(
-    chain: &Chain,
-    map: &JointMap,
-    samples: &[(Vec<f64>, Isometry3<f64>)],
-) -> f64 {
+fn orientation_mismatch(map: &JointMap, samples: &Samples) -> f64 {
     samples
+        .motions
         .iter()
-        .map(|(q, _)| {
-            let (c, a) = relative_rotations(chain, map, q);
-            (c.angle() - a.angle()).powi(2)
-        })
+        .zip(model_motions(map, samples))
+        .map(|(c, a)| (c.angle() - a.angle()).powi(2))
         .sum()
 }
 
 /// The UR5's lengths, F's rotation from the motions' axes (the chain's
 /// motion is F's rotation conjugating the model's: axis_chain = R_Fᵀ
 /// axis_model, solved as Kabsch's problem), B matching the zero pose.
-fn start(chain: &Chain, map: &JointMap, samples: &[(Vec<f64>, Isometry3<f64>)]) -> DVector<f64> {
+fn start(chain: &Chain, map: &JointMap, samples: &Samples) -> DVector<f64> {
     let mut h = nalgebra::Matrix3::zeros();
-    for (q, _) in samples {
-        let (c, a) = relative_rotations(chain, map, q);
+    for (c, a) in samples.motions.iter().zip(model_motions(map, samples)) {
         let (Some(ca), Some(aa)) = (c.axis(), a.axis()) else {
             continue;
         };
@@ -260,12 +273,12 @@ impl UrKinematics {
                 })
                 .collect()
         };
-        let fit_on = draw(FITTED);
+        let fit_on = Samples::new(chain, draw(FITTED));
         let check_on = draw(CHECKED);
         // Offsets of joints 2 to 5 in quarter turns and the directions of
         // joints 2 to 6; joint 1's offset and the last's are absorbed by B
-        // and F. The candidates are ranked by how well the UR5's lengths
-        // fit after matching the zero pose, and the best few are fitted.
+        // and F. The candidates are ranked by how well they explain the
+        // chain's rotations (`orientation_mismatch`).
         let quarter = std::f64::consts::FRAC_PI_2;
         let mut candidates: Vec<(JointMap, f64)> = (0..256 * 32)
             .map(|code: usize| {
@@ -278,7 +291,7 @@ impl UrKinematics {
                         *s = -1.0;
                     }
                 }
-                let cost = orientation_mismatch(chain, &map, &fit_on);
+                let cost = orientation_mismatch(&map, &fit_on);
                 (map, cost)
             })
             .collect();
@@ -292,7 +305,7 @@ impl UrKinematics {
             .take_while(|c| c.1 <= best + 1e-9)
             .take(MAX_FITS)
             .find_map(|(map, _)| {
-                let x = fit(start(chain, &map, &fit_on), &map, &fit_on);
+                let x = fit(start(chain, &map, &fit_on), &map, &fit_on.poses);
                 let worst = check_on
                     .iter()
                     .flat_map(|(q, tip)| pose_error(&model(&x, &map, q), tip))
