@@ -85,67 +85,116 @@ fn parry_shapes(shapes: &[LinkShape]) -> PlacedShapes {
         .collect()
 }
 
-/// Every link's pose (relative to the URDF's root) at the chain's
-/// configuration `q`; links not reached from the root are left out.
+/// A URDF joint ready to be placed: its origin, its motion per unit of
+/// value, and where its value comes from.
+struct PlacedJoint<'a> {
+    child: &'a str,
+    origin: Isometry3<f64>,
+    kind: urdf_rs::JointType,
+    axis: Vector3<f64>,
+    /// Its value: multiplier × the chain variable it follows (itself, or
+    /// its mimic leader; none off the chain, which holds it at zero) +
+    /// offset.
+    source: (Option<usize>, f64, f64),
+}
+
+/// The URDF's link tree, read once, placing every link for any
+/// configuration of the chain (joints off the chain at zero, mimic joints
+/// following their leader).
+pub struct LinkTree<'a> {
+    roots: Vec<&'a str>,
+    children: HashMap<&'a str, Vec<PlacedJoint<'a>>>,
+}
+
+impl<'a> LinkTree<'a> {
+    pub fn new(robot: &'a urdf_rs::Robot, chain: &Chain) -> Self {
+        let variable = |name: &str| {
+            chain
+                .joints
+                .iter()
+                .find(|j| j.name == name)
+                .and_then(|j| j.variable)
+        };
+        let is_child: std::collections::HashSet<&str> =
+            robot.joints.iter().map(|j| j.child.link.as_str()).collect();
+        let mut children: HashMap<&str, Vec<PlacedJoint>> = HashMap::new();
+        for j in &robot.joints {
+            let axis = Vector3::from(j.axis.xyz.0);
+            let source = match &j.mimic {
+                Some(m) => (
+                    variable(&m.joint),
+                    m.multiplier.unwrap_or(1.0),
+                    m.offset.unwrap_or(0.0),
+                ),
+                None => (variable(&j.name), 1.0, 0.0),
+            };
+            children
+                .entry(j.parent.link.as_str())
+                .or_default()
+                .push(PlacedJoint {
+                    child: j.child.link.as_str(),
+                    origin: isometry(&j.origin),
+                    kind: j.joint_type.clone(),
+                    axis: if axis.norm() > 0.0 {
+                        axis.normalize()
+                    } else {
+                        Vector3::x()
+                    },
+                    source,
+                });
+        }
+        Self {
+            roots: robot
+                .links
+                .iter()
+                .map(|l| l.name.as_str())
+                .filter(|l| !is_child.contains(l))
+                .collect(),
+            children,
+        }
+    }
+
+    /// Every link's pose (relative to the URDF's root) at the chain's
+    /// configuration `q`; links not reached from the root are left out.
+    pub fn poses(&self, q: &[f64]) -> HashMap<String, Isometry3<f64>> {
+        let mut poses = HashMap::new();
+        let mut stack: Vec<(&str, Isometry3<f64>)> = self
+            .roots
+            .iter()
+            .map(|l| (*l, Isometry3::identity()))
+            .collect();
+        while let Some((link, pose)) = stack.pop() {
+            if poses.insert(link.to_owned(), pose).is_some() {
+                continue;
+            }
+            for j in self.children.get(link).into_iter().flatten() {
+                let (variable, multiplier, offset) = j.source;
+                let value =
+                    variable.and_then(|v| q.get(v)).copied().unwrap_or(0.0) * multiplier + offset;
+                let motion = match j.kind {
+                    urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
+                        Isometry3::rotation(j.axis * value)
+                    }
+                    urdf_rs::JointType::Prismatic => {
+                        Isometry3::translation(j.axis.x * value, j.axis.y * value, j.axis.z * value)
+                    }
+                    _ => Isometry3::identity(),
+                };
+                stack.push((j.child, pose * j.origin * motion));
+            }
+        }
+        poses
+    }
+}
+
+/// Every link's pose at the chain's configuration `q` (see
+/// [`LinkTree::poses`]; build a [`LinkTree`] once to place many).
 pub fn all_link_poses(
     robot: &urdf_rs::Robot,
     chain: &Chain,
     q: &[f64],
 ) -> HashMap<String, Isometry3<f64>> {
-    // The chain's joint values by name (mimic joints included).
-    let mut values: HashMap<&str, f64> = HashMap::new();
-    for j in &chain.joints {
-        if let Some(v) = j.variable {
-            values.insert(j.name.as_str(), q.get(v).copied().unwrap_or(0.0));
-        }
-    }
-    let children: HashMap<&str, Vec<&urdf_rs::Joint>> =
-        robot.joints.iter().fold(HashMap::new(), |mut m, j| {
-            m.entry(j.parent.link.as_str()).or_default().push(j);
-            m
-        });
-    let is_child: std::collections::HashSet<&str> =
-        robot.joints.iter().map(|j| j.child.link.as_str()).collect();
-    let mut poses = HashMap::new();
-    let mut stack: Vec<(&str, Isometry3<f64>)> = robot
-        .links
-        .iter()
-        .filter(|l| !is_child.contains(l.name.as_str()))
-        .map(|l| (l.name.as_str(), Isometry3::identity()))
-        .collect();
-    while let Some((link, pose)) = stack.pop() {
-        if poses.insert(link.to_owned(), pose).is_some() {
-            continue;
-        }
-        for j in children.get(link).into_iter().flatten() {
-            let value = match &j.mimic {
-                Some(m) => {
-                    values.get(m.joint.as_str()).copied().unwrap_or(0.0)
-                        * m.multiplier.unwrap_or(1.0)
-                        + m.offset.unwrap_or(0.0)
-                }
-                None => values.get(j.name.as_str()).copied().unwrap_or(0.0),
-            };
-            let origin = isometry(&j.origin);
-            let axis = Vector3::from(j.axis.xyz.0);
-            let axis = if axis.norm() > 0.0 {
-                axis.normalize()
-            } else {
-                Vector3::x()
-            };
-            let motion = match j.joint_type {
-                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
-                    Isometry3::rotation(axis * value)
-                }
-                urdf_rs::JointType::Prismatic => {
-                    Isometry3::translation(axis.x * value, axis.y * value, axis.z * value)
-                }
-                _ => Isometry3::identity(),
-            };
-            stack.push((j.child.link.as_str(), pose * origin * motion));
-        }
-    }
-    poses
+    LinkTree::new(robot, chain).poses(q)
 }
 
 /// Groups of links welded by fixed joints: each link's group index.
@@ -220,9 +269,10 @@ pub fn disabled_pairs(
     }
     let mut hits = vec![0usize; pairs.len()];
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let links = LinkTree::new(robot, chain);
     for _ in 0..samples {
         let q = random_configuration(chain, &mut rng);
-        let poses = all_link_poses(robot, chain, &q);
+        let poses = links.poses(&q);
         for (n, &(i, k)) in pairs.iter().enumerate() {
             let (Some(pi), Some(pk)) = (poses.get(shapes[i].0), poses.get(shapes[k].0)) else {
                 continue;
