@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use treemanip::robot::chain::Chain;
-use treemanip::robot::link_geometry::{LinkShape, link_geometry_of_file, package_path_from_env};
+use treemanip::robot::chain::{Chain, parse_urdf};
+use treemanip::robot::link_geometry::{LinkShape, link_geometry, package_path_from_env};
 use treemanip::robot::self_collision::{DisableReason, disabled_pairs};
 
 #[derive(Subcommand)]
@@ -61,9 +61,15 @@ pub fn run(command: RobotCommand) -> anyhow::Result<()> {
     }
 }
 
-fn import(args: ImportArgs) -> anyhow::Result<()> {
-    let mut packages = args.package_path.clone();
+/// The directories given, then `TREEMANIP_PACKAGE_PATH`'s.
+fn package_path(given: &[PathBuf]) -> Vec<PathBuf> {
+    let mut packages = given.to_vec();
     packages.extend(package_path_from_env());
+    packages
+}
+
+fn import(args: ImportArgs) -> anyhow::Result<()> {
+    let packages = package_path(&args.package_path);
     let command = format!(
         "treemanip robot import {} --out {}",
         args.config.display(),
@@ -93,10 +99,15 @@ fn import(args: ImportArgs) -> anyhow::Result<()> {
 }
 
 fn shapes(args: ShapesArgs) -> anyhow::Result<()> {
-    let mut packages = args.package_path.clone();
-    packages.extend(package_path_from_env());
-    let links = link_geometry_of_file(&args.urdf, &packages)
-        .with_context(|| format!("collision geometry of {}", args.urdf.display()))?;
+    let text = std::fs::read_to_string(&args.urdf)
+        .with_context(|| format!("reading {}", args.urdf.display()))?;
+    let robot = parse_urdf(&text).with_context(|| format!("{}", args.urdf.display()))?;
+    let links = link_geometry(
+        &robot,
+        args.urdf.parent(),
+        &package_path(&args.package_path),
+    )
+    .with_context(|| format!("collision geometry of {}", args.urdf.display()))?;
     println!(
         "link                 shapes                              meshes (triangles, capsules, volume / hull)"
     );
@@ -144,9 +155,6 @@ fn shapes(args: ShapesArgs) -> anyhow::Result<()> {
         );
     }
     if args.samples > 0 {
-        let text = std::fs::read_to_string(&args.urdf)
-            .with_context(|| format!("reading {}", args.urdf.display()))?;
-        let robot = treemanip::robot::chain::parse_urdf(&text)?;
         let chain = Chain::from_robot(&robot, args.base.as_deref(), args.tip.as_deref())?;
         let pairs = disabled_pairs(&robot, &chain, &links, args.samples, 0);
         println!(

@@ -85,8 +85,6 @@ pub enum GeometryError {
     EmptyMesh { link: String, file: PathBuf },
     #[error("link `{link}`: {message}")]
     BadShape { link: String, message: String },
-    #[error("{file}: {message}")]
-    Urdf { file: PathBuf, message: String },
 }
 
 /// The package path from `TREEMANIP_PACKAGE_PATH` (empty when unset).
@@ -202,19 +200,6 @@ fn positive(link: &str, what: &str, v: f64) -> Result<f64, GeometryError> {
             message: format!("{what} must be positive and finite, it is {v}"),
         })
     }
-}
-
-/// The collision geometry of the URDF at `path` (meshes found relative to
-/// it and through `packages`).
-pub fn link_geometry_of_file(
-    path: &Path,
-    packages: &[PathBuf],
-) -> Result<Vec<LinkGeometry>, GeometryError> {
-    let robot = urdf_rs::read_file(path).map_err(|e| GeometryError::Urdf {
-        file: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    link_geometry(&robot, path.parent(), packages)
 }
 
 /// The collision geometry of every link of `robot` that has any, in the
