@@ -162,7 +162,10 @@ pub fn eval_stiffness(args: EvalStiffnessArgs) -> anyhow::Result<()> {
         "# Forward model and stiffness (`treemanip eval stiffness`)\n\n`{}` on the test split of `{}` (perturbed stiffness: `{}`), {} episodes per size.\n\n{table}",
         path.display(),
         args.data.display(),
-        crate::learn::dataset_command(&args.data).unwrap_or_else(|| "no summary.json".into()),
+        crate::learn::dataset_config(&args.data)
+            .as_ref()
+            .and_then(crate::learn::dataset_command)
+            .unwrap_or_else(|| "no summary.json".into()),
         args.per_size
     );
     std::fs::write(args.out.join("stiffness.md"), md)?;

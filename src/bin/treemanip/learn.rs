@@ -265,20 +265,19 @@ pub fn export_cmd(args: ExportArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The seed `dataset collect` recorded in the directory's summary.json.
-fn dataset_seed(dir: &Path) -> Option<u64> {
+/// The `config` that `dataset collect` recorded in the directory's
+/// summary.json.
+pub(crate) fn dataset_config(dir: &Path) -> Option<serde_json::Value> {
     let text = std::fs::read_to_string(dir.join("summary.json")).ok()?;
-    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
-    v["config"]["seed"].as_u64()
+    let mut v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    Some(v.get_mut("config")?.take())
 }
 
-/// The `dataset collect` command that regenerates the data in `dir`, from
-/// its `summary.json`: the seed and every option that differs from the
-/// default (stiffness perturbations, contact, trees per size).
-pub(crate) fn dataset_command(dir: &Path) -> Option<String> {
-    let text = std::fs::read_to_string(dir.join("summary.json")).ok()?;
-    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
-    let config = &v["config"];
+/// The `dataset collect` command that regenerates the data recorded by
+/// `config` (see [`dataset_config`]): the seed and every option that
+/// differs from the default (stiffness perturbations, contact, trees per
+/// size).
+pub(crate) fn dataset_command(config: &serde_json::Value) -> Option<String> {
     let mut command = format!(
         "treemanip dataset collect --out DIR --seed {}",
         config["seed"].as_u64()?
@@ -334,6 +333,7 @@ fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
         treemanip::nn::model::ModelWeights::PointNet(w) => &w.stats,
     };
     let (out_mean, out_std) = weights.output_scale();
+    let dataset = dataset_config(&state.config.data);
     let card = ModelCard {
         name: weights.stem(),
         task: weights.task(),
@@ -343,8 +343,8 @@ fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
         normalisation: serde_json::json!({"inputs": stats, "output_mean": out_mean, "output_std": out_std}),
         training_data: TrainingData {
             directory: state.config.data.display().to_string(),
-            dataset_seed: dataset_seed(&state.config.data),
-            regenerate: dataset_command(&state.config.data),
+            dataset_seed: dataset.as_ref().and_then(|c| c["seed"].as_u64()),
+            regenerate: dataset.as_ref().and_then(dataset_command),
             sizes: state.config.sizes.clone(),
             limit_per_size: state.config.limit_per_size,
             validation: "trees with index ≡ 9 (mod 10) in each size file".into(),
