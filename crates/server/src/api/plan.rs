@@ -15,7 +15,7 @@ use super::objective::{LimitsJson, LoadsJson, ObjectiveJson, limits, objective};
 use super::observations::{IdentifyResponse, ProbeJson, identify_config, probes};
 use super::state::ModelInfo;
 use super::tree_json::TreeJson;
-use super::validate::{MAX_DISTANCE, joints, near_point, vector3};
+use super::validate::{MAX_DISTANCE, joints, near_point, vector3, within_turn};
 use treemanip_core::graph::Task;
 use treemanip_core::identify::Noise;
 use treemanip_core::planner::base::{BasePose, BaseRegion};
@@ -192,13 +192,7 @@ fn base_rpy(robot: &RobotJson) -> Result<[f64; 3], ApiError> {
         return Ok([0.0; 3]);
     };
     match v.as_slice() {
-        [r, p, y]
-            if [r, p, y]
-                .iter()
-                .all(|a| a.is_finite() && a.abs() <= 2.0 * std::f64::consts::PI) =>
-        {
-            Ok([*r, *p, *y])
-        }
+        [r, p, y] if [r, p, y].iter().all(|a| within_turn(**a)) => Ok([*r, *p, *y]),
         _ => Err(invalid(
             "robot.base_rpy",
             "`robot.base_rpy` must be [roll, pitch, yaw], finite, within ±2π rad",
@@ -246,13 +240,7 @@ pub(crate) fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
             let yaw = match &region.yaw {
                 None => None,
                 Some(y) => match y.as_slice() {
-                    [lo, hi]
-                        if lo.is_finite()
-                            && hi.is_finite()
-                            && lo <= hi
-                            && lo.abs() <= 2.0 * std::f64::consts::PI
-                            && hi.abs() <= 2.0 * std::f64::consts::PI =>
-                    {
+                    [lo, hi] if within_turn(*lo) && within_turn(*hi) && lo <= hi => {
                         Some((*lo, *hi))
                     }
                     _ => {

@@ -205,7 +205,7 @@ pub async fn link_poses(
         Some(b) => {
             let p: Point3<f64> = super::validate::near_point(&b.position, "base.position")?;
             for (name, v) in [("yaw", b.yaw), ("roll", b.roll), ("pitch", b.pitch)] {
-                if !(v.is_finite() && v.abs() <= 2.0 * std::f64::consts::PI) {
+                if !super::validate::within_turn(v) {
                     return Err(ApiError::invalid_argument(format!(
                         "`base.{name}` must be finite, within ±2π rad"
                     ))

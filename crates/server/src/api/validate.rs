@@ -101,6 +101,12 @@ pub fn targets_at(
         .collect()
 }
 
+/// Whether `angle` is a heading the API takes: finite, within ±2π rad
+/// (base yaw, roll and pitch, a base region's yaw range).
+pub fn within_turn(angle: f64) -> bool {
+    angle.is_finite() && angle.abs() <= std::f64::consts::TAU
+}
+
 /// A joint configuration (rad) given in `field`.
 pub fn joints(values: &[f64], field: &str) -> Result<[f64; 6], ApiError> {
     let q = <[f64; 6]>::try_from(values).map_err(|_| {
