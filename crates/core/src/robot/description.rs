@@ -354,16 +354,8 @@ pub fn import(
             }
             h.clone()
         }
-        None => limits
-            .iter()
-            .map(|(lo, hi)| {
-                if lo.is_finite() && hi.is_finite() {
-                    0f64.clamp(*lo, *hi)
-                } else {
-                    0.0
-                }
-            })
-            .collect(),
+        // Continuous joints' ±∞ limits leave 0 as it is.
+        None => limits.iter().map(|(lo, hi)| 0f64.clamp(*lo, *hi)).collect(),
     };
     let geometry = link_geometry(&robot, urdf_path.parent(), packages)
         .map_err(|e| fail(&urdf_path, e.to_string()))?;
