@@ -9,7 +9,7 @@ use std::time::Duration;
 use nalgebra::{Point3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use treemanip::infer::models::ModelSet;
+use treemanip::infer::models::{ModelSet, ServedModel};
 use treemanip::planner::predict::max_node_error;
 use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
 use treemanip::robot::Ur5;
@@ -22,6 +22,14 @@ use treemanip::tree::{ScaParams, Tree, generate};
 
 fn models() -> ModelSet {
     ModelSet::load_dir(Path::new("models"), None, 1, false).expect("the committed models load")
+}
+
+/// The GNN contact policy and forward model of `set`.
+fn policy_and_forward(set: &ModelSet) -> (&ServedModel, &ServedModel) {
+    (
+        set.get("policy_gnn").unwrap(),
+        set.get("forward_gnn").unwrap(),
+    )
 }
 
 /// A random tree and the target made by a random paper-style push.
@@ -211,10 +219,7 @@ fn query(tree: &Tree, targets: &[Point3<f64>], strategy: Strategy, region: bool)
 #[test]
 fn every_strategy_and_stance_returns_valid_plans_that_help() {
     let set = models();
-    let (policy, forward) = (
-        set.get("policy_gnn").unwrap(),
-        set.get("forward_gnn").unwrap(),
-    );
+    let (policy, forward) = policy_and_forward(&set);
     let planner = Planner::default();
     let mut planned = 0;
     let mut helped = 0;
@@ -276,10 +281,7 @@ fn every_strategy_and_stance_returns_valid_plans_that_help() {
 #[test]
 fn physics_search_is_no_worse_than_the_papers_pick_with_a_base_region() {
     let set = models();
-    let (policy, forward) = (
-        set.get("policy_gnn").unwrap(),
-        set.get("forward_gnn").unwrap(),
-    );
+    let (policy, forward) = policy_and_forward(&set);
     let planner = Planner::default();
     let (tree, targets) = episode(12, 21);
     let error = |strategy| {
@@ -314,10 +316,7 @@ fn physics_search_is_no_worse_than_the_papers_pick_with_a_base_region() {
 #[test]
 fn a_tilted_base_plans_in_the_trees_frame() {
     let set = models();
-    let (policy, forward) = (
-        set.get("policy_gnn").unwrap(),
-        set.get("forward_gnn").unwrap(),
-    );
+    let (policy, forward) = policy_and_forward(&set);
     let planner = Planner::default();
     let tilted = treemanip::planner::base::BasePose {
         position: [-0.5, 0.0, 0.1],
@@ -376,10 +375,7 @@ fn a_tilted_base_plans_in_the_trees_frame() {
 #[test]
 fn obstacles_are_respected_and_named() {
     let set = models();
-    let (policy, forward) = (
-        set.get("policy_gnn").unwrap(),
-        set.get("forward_gnn").unwrap(),
-    );
+    let (policy, forward) = policy_and_forward(&set);
     let planner = Planner::default();
     let (tree, targets) = episode(10, 3);
     let mut q = query(&tree, &targets, Strategy::Physics, false);
@@ -526,10 +522,7 @@ fn the_default_search_budget_follows_the_graphs_size_and_bounds_predictions() {
     // An explicit budget bounds the search; the fallback to the policy's
     // own pushes adds at most FALLBACK_PREDICTIONS.
     let set = models();
-    let (policy, forward) = (
-        set.get("policy_gnn").unwrap(),
-        set.get("forward_gnn").unwrap(),
-    );
+    let (policy, forward) = policy_and_forward(&set);
     for strategy in [Strategy::Physics, Strategy::Model] {
         let mut q = query(&tree, &targets, strategy, false);
         q.max_evaluations = Some(5);
