@@ -19,7 +19,7 @@ use treemanip::eval::plan::percentile;
 use treemanip::robot::chain::Chain;
 use treemanip::robot::description::RobotDescription;
 use treemanip::robot::ik_numeric::{IkOptions, random_configuration, solve};
-use treemanip::robot::{Ur5, ur5};
+use treemanip::robot::{Arm, ur5};
 
 /// The shipped robot descriptions (`robots/*.toml`): name, chain, home.
 fn shipped() -> Vec<(String, Chain, Vec<f64>)> {
@@ -101,7 +101,7 @@ fn main() {
         if name == "UR5" {
             // The closed form on the same poses (tool frame, base at the
             // origin), the fast path for UR kinematics.
-            let arm = Ur5::default().with_base(nalgebra::Isometry3::identity());
+            let arm = Arm::default().with_base(nalgebra::Isometry3::identity());
             let mut times = Vec::with_capacity(poses);
             let mut solved = 0;
             for goal in &goals {

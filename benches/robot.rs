@@ -22,7 +22,7 @@ use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use treemanip::robot::ik;
 use treemanip::robot::rrt::{Config, MotionValidator, RrtStarOptions, rrt_star};
 use treemanip::robot::scene::PlanningScene;
-use treemanip::robot::{Ur5, ur5};
+use treemanip::robot::{Arm, ur5};
 use treemanip::tree::{ScaParams, generate};
 
 fn rate(budget: Duration, mut f: impl FnMut(u64)) -> f64 {
@@ -42,11 +42,11 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
 
 fn main() {
     let budget = Duration::from_secs(2);
-    let model = CollisionModel::new(Ur5::default());
+    let model = CollisionModel::new(Arm::default());
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let configs: Vec<Config> = (0..4096)
         .map(|_| {
-            std::array::from_fn(|i| {
+            Config::from_fn(6, |i| {
                 rng.random_range(ur5::JOINT_LIMITS[i].0..ur5::JOINT_LIMITS[i].1)
             })
         })
@@ -85,7 +85,10 @@ fn main() {
         );
     }
 
-    let targets: Vec<_> = configs.iter().map(ik::forward).collect();
+    let targets: Vec<_> = configs
+        .iter()
+        .map(|q| ik::forward(&std::array::from_fn(|i| q[i])))
+        .collect();
     let r = rate(budget, |i| {
         black_box(ik::solve(&targets[i as usize % 4096], &[0.0; 6]));
     });
@@ -96,8 +99,8 @@ fn main() {
     );
 
     // The fence scene of tests/robot_rrt.rs.
-    let start: Config = [0.0, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0];
-    let goal: Config = [1.3, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0];
+    let start = Config::from([0.0, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0]);
+    let goal = Config::from([1.3, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0]);
     let base = ur5::default_base().translation.vector;
     let tool = |q: &Config| model.robot.tool_pose(q).translation.vector - base;
     let (a, b) = (tool(&start), tool(&goal));
@@ -201,7 +204,7 @@ fn main() {
         let result = rrt::dual_rrt_connect(
             &start,
             &goal,
-            |q: &[f64]| scene.config_valid(&<Config>::try_from(q).unwrap()),
+            |q: &[f64]| scene.config_valid(&Config::from_slice(q)),
             || {
                 let mut r = sampler.borrow_mut();
                 (0..6)
@@ -217,10 +220,7 @@ fn main() {
         );
         if let Ok(path) = result {
             times.push(t.elapsed().as_secs_f64() * 1e3);
-            let path: Vec<Config> = path
-                .iter()
-                .map(|q| <Config>::try_from(q.as_slice()).unwrap())
-                .collect();
+            let path: Vec<Config> = path.iter().map(|q| Config::from_slice(q)).collect();
             costs.push(treemanip::robot::rrt::path_cost(&path));
             if !path.windows(2).all(|w| scene.edge_valid(&w[0], &w[1])) {
                 invalid += 1;
@@ -256,6 +256,10 @@ impl MotionValidator for FixedStep<'_> {
     fn edge_valid(&self, a: &Config, b: &Config) -> bool {
         self.0.edge_valid_fixed_step(a, b)
     }
+
+    fn joint_limits(&self) -> Vec<(f64, f64)> {
+        self.0.joint_limits()
+    }
 }
 
 impl MotionValidator for Counting<'_> {
@@ -271,5 +275,9 @@ impl MotionValidator for Counting<'_> {
         let check = self.scene.edge_check(a, b);
         self.edge_poses.set(self.edge_poses.get() + check.poses);
         check.free
+    }
+
+    fn joint_limits(&self) -> Vec<(f64, f64)> {
+        self.scene.joint_limits()
     }
 }

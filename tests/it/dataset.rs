@@ -367,7 +367,7 @@ fn plan_cli_reports_attempts_and_trajectory_as_json() {
         "0,0,0,0,0",
     ]);
     assert!(!bad.status.success());
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("expected 6 comma-separated numbers"));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--start needs 6 values"));
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -12,7 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use treemanip::infer::models::{ModelSet, ServedModel};
 use treemanip::planner::predict::max_node_error;
 use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
-use treemanip::robot::Ur5;
+use treemanip::robot::Arm;
 use treemanip::robot::collision::{Allowed, CollisionModel, Hit, Obstacle, TreeObstacles};
 use treemanip::robot::dh::JOINT_LIMITS;
 use treemanip::robot::plan::{APPROACH_OFFSET, Outcome};
@@ -133,7 +133,7 @@ fn check_execution(plan: &Plan, query: &Query) {
     assert!(t[e.push_end_point + 1] - t[e.push_end_point] >= query.execution.hold_s - 1e-9);
     assert_eq!(points.last().unwrap().positions, plan.start.to_vec());
     // The approach, blended or not, clears the tree and the obstacles.
-    let arm = CollisionModel::new(Ur5::default().with_base(base));
+    let arm = CollisionModel::new(Arm::default().with_base(base));
     let rest = TreeObstacles::new(&query.tree).with_obstacles(&query.obstacles);
     let near = near_contact(&query.tree, p.node);
     for point in &points[..=e.push_start_point] {
@@ -164,7 +164,7 @@ fn check_plan(plan: &Plan, query: &Query) {
         p.trajectory[0].q, plan.start,
         "the trajectory begins at the start"
     );
-    let arm = CollisionModel::new(Ur5::default().with_base(plan.base.isometry()));
+    let arm = CollisionModel::new(Arm::default().with_base(plan.base.isometry()));
     let rest = TreeObstacles::new(tree).with_obstacles(&query.obstacles);
     let near = near_contact(tree, p.node);
     for point in &p.trajectory[..=p.push_start_index] {
@@ -384,7 +384,7 @@ fn obstacles_are_respected_and_named() {
     // A stake (20 cm, 4 cm radius) through where the wrist passed along
     // the approach, from halfway on: the first such place that leaves the
     // start free (an obstacle on the start is the wall's case below).
-    let arm = CollisionModel::new(Ur5::default().with_base(plan.base.isometry()));
+    let arm = CollisionModel::new(Arm::default().with_base(plan.base.isometry()));
     let post_at = |k: usize| {
         let at = arm.robot.tool_pose(&p.trajectory[k].q).translation.vector;
         Obstacle::Capsule {
@@ -431,7 +431,7 @@ fn obstacles_are_respected_and_named() {
         yaw: 0.3,
     };
     let walled_in = TreeObstacles::new(&tree).with_obstacles(&[post, wall.clone()]);
-    let hit = CollisionModel::new(Ur5::default()).check(
+    let hit = CollisionModel::new(Arm::default()).check(
         &treemanip::robot::ur5::HOME,
         &walled_in,
         &Allowed::default(),

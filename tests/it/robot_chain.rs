@@ -10,7 +10,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use treemanip::robot::chain::{Chain, ChainError, JointKind};
 use treemanip::robot::ik_numeric::{IkOptions, random_configuration, solve};
-use treemanip::robot::{Ur5, ur5};
+use treemanip::robot::{Arm, ur5};
 
 /// The Panda URDF that the `example-robot-data` package ships, or `None`
 /// (the test then says why it skipped, unless Python is required).
@@ -48,7 +48,7 @@ fn the_ur5_as_a_chain_matches_the_ur5_model() {
     assert_eq!(chain.dof(), 6);
     let names: Vec<&str> = chain.variables().map(|j| j.name.as_str()).collect();
     assert_eq!(names, ur5::JOINT_NAMES);
-    let arm = Ur5::default().with_base(nalgebra::Isometry3::identity());
+    let arm = Arm::default().with_base(nalgebra::Isometry3::identity());
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     for _ in 0..200 {
         let q = random_configuration(&chain, &mut rng);

@@ -2,28 +2,30 @@
 //! the gripper's allowance, self-collision pairs.
 
 use nalgebra::{Point3, Vector3};
-use treemanip::robot::collision::{Allowed, CollisionModel, DISABLED_PAIRS, Hit, TreeObstacles};
-use treemanip::robot::{Ur5, ur5};
+use treemanip::robot::collision::{Allowed, CollisionModel, Hit, TreeObstacles};
+use treemanip::robot::rrt::Config;
+use treemanip::robot::ur5::DISABLED_PAIRS;
+use treemanip::robot::{Arm, ur5};
 
 fn model() -> CollisionModel {
-    CollisionModel::new(Ur5::default())
+    CollisionModel::new(Arm::default())
 }
 
 /// A configuration reaching forward over the ground, arm clear of itself.
-const REACH: [f64; 6] = [0.0, -1.2, 1.4, -1.7, -std::f64::consts::FRAC_PI_2, 0.0];
+const REACH: Config = Config::new([0.0, -1.2, 1.4, -1.7, -std::f64::consts::FRAC_PI_2, 0.0]);
 
 #[test]
 fn zero_and_home_are_free_and_disabled_pairs_are_needed_for_that() {
     let m = model();
     let empty = TreeObstacles::empty();
-    for q in [[0.0; 6], ur5::HOME, REACH] {
+    for q in [Config::zeros(6), ur5::HOME, REACH] {
         assert_eq!(m.check(&q, &empty, &Allowed::default()), None, "{q:?}");
     }
     // Without the disabled pairs, the capsules overlap in these valid
     // configurations, and only in those pairs.
-    let strict = CollisionModel::with_disabled_pairs(Ur5::default(), &[]);
+    let strict = CollisionModel::with_disabled_pairs(Arm::default(), &[]);
     let mut seen = Vec::new();
-    for q in [[0.0; 6], ur5::HOME] {
+    for q in [Config::zeros(6), ur5::HOME] {
         if let Some(Hit::SelfCollision { link, other }) =
             strict.check(&q, &empty, &Allowed::default())
         {
@@ -96,7 +98,7 @@ fn the_ground_is_an_obstacle() {
     ));
     // Mounted higher, the same configuration clears the ground.
     let high = CollisionModel::new(
-        Ur5::default().with_base(nalgebra::Isometry3::translation(-0.5, 0.0, 1.5)),
+        Arm::default().with_base(nalgebra::Isometry3::translation(-0.5, 0.0, 1.5)),
     );
     assert_eq!(high.check(&down, &empty, &Allowed::default()), None);
 }

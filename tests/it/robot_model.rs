@@ -6,8 +6,9 @@ use std::f64::consts::PI;
 use nalgebra::{Isometry3, Matrix4, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use treemanip::robot::Ur5;
-use treemanip::robot::ur5::{self, DH_A, DH_ALPHA, DH_D, JOINT_LIMITS, LinkShape};
+use treemanip::robot::Arm;
+use treemanip::robot::link_geometry::LinkShape;
+use treemanip::robot::ur5::{self, DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
 
 #[test]
 fn committed_urdf_is_the_generated_one() {
@@ -45,23 +46,30 @@ fn random_q(rng: &mut ChaCha8Rng) -> [f64; 6] {
     std::array::from_fn(|i| rng.random_range(JOINT_LIMITS[i].0..JOINT_LIMITS[i].1))
 }
 
+/// World pose of the DH base frame 0 (`base_link_inertia`, fixed to the
+/// mount).
+fn dh_base(robot: &Arm) -> Isometry3<f64> {
+    let frame0 = robot.link_index("base_link_inertia").unwrap();
+    robot.link_poses(&[0.0; 6])[frame0]
+}
+
 #[test]
 fn forward_kinematics_matches_an_independent_dh_computation() {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let base = Isometry3::new(Vector3::new(-0.5, 0.2, 0.1), Vector3::new(0.0, 0.0, 0.3));
-    let robot = Ur5::default().with_base(base);
+    let robot = Arm::default().with_base(base);
     let flange = robot.link_index("wrist_3_link").unwrap();
     for _ in 0..200 {
         let q = random_q(&mut rng);
         let fk = robot.link_poses(&q)[flange].to_homogeneous();
-        let expected = robot.dh_base().to_homogeneous() * dh_flange(&q);
+        let expected = dh_base(&robot).to_homogeneous() * dh_flange(&q);
         assert!(
             (fk - expected).abs().max() < 1e-9,
             "q = {q:?}\n{fk}\n{expected}"
         );
     }
     // The DH base frame is the mount turned by π about z.
-    let frame0 = robot.dh_base();
+    let frame0 = dh_base(&robot);
     assert!((frame0.translation.vector - base.translation.vector).norm() < 1e-15);
     assert!(
         (frame0.rotation.angle_to(
@@ -74,7 +82,7 @@ fn forward_kinematics_matches_an_independent_dh_computation() {
 
 #[test]
 fn tool_frame_sits_on_the_palm_face() {
-    let robot = Ur5::default();
+    let robot = Arm::default();
     let q = ur5::HOME;
     let poses = robot.link_poses(&q);
     let flange = poses[robot.link_index("wrist_3_link").unwrap()];
@@ -99,7 +107,7 @@ fn capsules_enclose_the_reference_meshes() {
     // this shows the capsules cover every mesh surface, not just vertices.
     let meshes: serde_json::Value =
         serde_json::from_str(include_str!("../data/ur5_mesh_triangles.json")).unwrap();
-    let robot = Ur5::default();
+    let robot = Arm::default();
     let mut checked = 0;
     for (link, shapes) in robot.link_shapes() {
         let Some(mesh) = meshes["links"].get(link) else {
@@ -108,8 +116,8 @@ fn capsules_enclose_the_reference_meshes() {
         let capsules: Vec<(Vector3<f64>, Vector3<f64>, f64)> = shapes
             .iter()
             .filter_map(|s| match s {
-                LinkShape::Capsule { a, b, radius } => Some((*a, *b, *radius)),
-                LinkShape::Box { .. } => None,
+                LinkShape::Capsule(c) => Some((c.a.coords, c.b.coords, c.radius)),
+                _ => None,
             })
             .collect();
         assert!(!capsules.is_empty(), "{link} has no capsule");
@@ -155,7 +163,7 @@ fn capsules_enclose_the_reference_meshes() {
 fn home_pose_holds_the_gripper_in_front_of_the_tree() {
     // With the paper's mount, home puts the tool between the robot and the
     // tree, above the ground, pointing roughly at the tree.
-    let robot = Ur5::default();
+    let robot = Arm::default();
     let tool = robot.tool_pose(&ur5::HOME);
     let p = tool.translation.vector;
     println!(
@@ -272,12 +280,12 @@ mod inverse_kinematics {
 
     #[test]
     fn tool_pose_inverse_kinematics_in_the_world() {
-        let robot = Ur5::default();
+        let robot = Arm::default();
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         for _ in 0..100 {
             let q = random_q(&mut rng);
             let tool = robot.tool_pose(&q);
-            let solutions = robot.inverse_kinematics(&tool, &q);
+            let solutions = robot.inverse_kinematics(&tool, &q.into());
             assert!(!solutions.is_empty());
             // The nearest solution is q itself.
             let first = solutions[0];

@@ -8,7 +8,7 @@ use treemanip::robot::plan::{
 };
 use treemanip::robot::rrt::{Config, MotionValidator};
 use treemanip::robot::scene::PlanningScene;
-use treemanip::robot::{Ur5, ur5};
+use treemanip::robot::{Arm, ur5};
 use treemanip::sim::Push;
 use treemanip::tree::{Tree, Wood};
 
@@ -60,7 +60,7 @@ fn plan_one(
 
 fn model() -> CollisionModel {
     // Beside the tree, on the side the sideways pushes come from.
-    CollisionModel::new(Ur5::default().with_base(Isometry3::translation(0.2, 0.55, 0.1)))
+    CollisionModel::new(Arm::default().with_base(Isometry3::translation(0.2, 0.55, 0.1)))
 }
 
 #[test]
@@ -192,7 +192,7 @@ fn unusable_and_unreachable_candidates_are_reported() {
 fn a_start_in_collision_is_refused() {
     let tree = scene_tree();
     let model = model();
-    let into_ground = [0.0, 1.2, 0.0, 0.0, 0.0, 0.0];
+    let into_ground = Config::new([0.0, 1.2, 0.0, 0.0, 0.0, 0.0]);
     let obstacles = TreeObstacles::new(&tree);
     assert!(!PlanningScene::new(&model, &obstacles, Allowed::default()).config_valid(&into_ground));
     let side = Push {

@@ -10,10 +10,10 @@ use treemanip::robot::rrt::{
 };
 use treemanip::robot::scene::PlanningScene;
 use treemanip::robot::trajectory::time_parameterize;
-use treemanip::robot::{Ur5, ur5};
+use treemanip::robot::{Arm, ur5};
 
-const START: Config = [0.0, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0];
-const GOAL: Config = [1.3, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0];
+const START: Config = Config::new([0.0, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0]);
+const GOAL: Config = Config::new([1.3, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0]);
 
 /// A fence of vertical poles on the ray from the arm's base at angle
 /// `bearing`, from 0.3 m to 0.9 m out, 0.5 m tall.
@@ -34,12 +34,12 @@ fn dense_path_is_free(model: &CollisionModel, obstacles: &TreeObstacles, path: &
     // 10× finer than planning, no margin.
     path.windows(2).all(|w| {
         let sweep: f64 = (0..6)
-            .map(|i| treemanip::robot::scene::LEVER_ARMS[i] * (w[1][i] - w[0][i]).abs())
+            .map(|i| model.lever_arms()[i] * (w[1][i] - w[0][i]).abs())
             .sum();
         let steps = (sweep / 0.001).ceil().max(1.0) as usize;
         (0..=steps).all(|k| {
             let t = k as f64 / steps as f64;
-            let q: Config = std::array::from_fn(|i| w[0][i] + (w[1][i] - w[0][i]) * t);
+            let q: Config = Config::from_fn(6, |i| w[0][i] + (w[1][i] - w[0][i]) * t);
             model.check(&q, obstacles, &Allowed::default()).is_none()
         })
     })
@@ -48,7 +48,7 @@ fn dense_path_is_free(model: &CollisionModel, obstacles: &TreeObstacles, path: &
 /// Where the base's "forward" bearing lies for joint 1 angle q1 (the DH base
 /// is turned by π, so q1 = 0 points the arm along world +x).
 fn bearing_between() -> f64 {
-    let model = Ur5::default();
+    let model = Arm::default();
     let p =
         |q: &Config| model.tool_pose(q).translation.vector - ur5::default_base().translation.vector;
     let (a, b) = (p(&START), p(&GOAL));
@@ -57,7 +57,7 @@ fn bearing_between() -> f64 {
 
 #[test]
 fn finds_a_way_around_a_wall_and_the_path_is_really_free() {
-    let model = CollisionModel::new(Ur5::default());
+    let model = CollisionModel::new(Arm::default());
     let obstacles = fence(bearing_between());
     let scene = PlanningScene::new(&model, &obstacles, Allowed::default());
     assert!(scene.config_valid(&START) && scene.config_valid(&GOAL));
@@ -116,7 +116,7 @@ fn finds_a_way_around_a_wall_and_the_path_is_really_free() {
 
 #[test]
 fn cost_never_increases_with_more_iterations() {
-    let model = CollisionModel::new(Ur5::default());
+    let model = CollisionModel::new(Arm::default());
     let obstacles = fence(bearing_between());
     let scene = PlanningScene::new(&model, &obstacles, Allowed::default());
     let run = |iterations: usize| {
@@ -144,10 +144,10 @@ fn cost_never_increases_with_more_iterations() {
 
 #[test]
 fn unreachable_goals_and_bad_starts_are_reported() {
-    let model = CollisionModel::new(Ur5::default());
+    let model = CollisionModel::new(Arm::default());
     let obstacles = fence(bearing_between());
     let scene = PlanningScene::new(&model, &obstacles, Allowed::default());
-    let into_ground = [0.0, 1.2, 0.0, 0.0, 0.0, 0.0];
+    let into_ground = Config::new([0.0, 1.2, 0.0, 0.0, 0.0, 0.0]);
     let options = RrtStarOptions {
         max_iterations: 50,
         ..RrtStarOptions::default()
@@ -169,21 +169,21 @@ fn unreachable_goals_and_bad_starts_are_reported() {
 #[test]
 fn edge_spacing_bounds_every_shape_points_motion() {
     use rand::{RngExt, SeedableRng};
-    let model = CollisionModel::new(Ur5::default());
+    let model = CollisionModel::new(Arm::default());
     let empty = TreeObstacles::empty();
     let scene = PlanningScene::new(&model, &empty, Allowed::default());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
     let limits = treemanip::robot::dh::JOINT_LIMITS;
     let mut tight = 0.0f64;
     for _ in 0..300 {
-        let a: Config = std::array::from_fn(|i| rng.random_range(limits[i].0..limits[i].1) * 0.5);
-        let b: Config = std::array::from_fn(|i| a[i] + rng.random_range(-0.6..0.6));
+        let a: Config = Config::from_fn(6, |i| rng.random_range(limits[i].0..limits[i].1) * 0.5);
+        let b: Config = Config::from_fn(6, |i| a[i] + rng.random_range(-0.6..0.6));
         let bound = scene.edge_intervals(&a, &b) as f64 * scene.resolution;
         let start = model.capsules_at(&a);
         let mut moved = 0.0f64;
         for k in 1..=200 {
             let t = k as f64 / 200.0;
-            let q: Config = std::array::from_fn(|i| a[i] + (b[i] - a[i]) * t);
+            let q: Config = Config::from_fn(6, |i| a[i] + (b[i] - a[i]) * t);
             for (c0, c) in start.iter().zip(model.capsules_at(&q)) {
                 moved = moved.max((c.1 - c0.1).norm()).max((c.2 - c0.2).norm());
             }
@@ -208,7 +208,7 @@ fn conservative_advancement_accepts_only_free_edges() {
     use treemanip::robot::collision::Obstacle;
     use treemanip::tree::{ScaParams, generate};
 
-    let model = CollisionModel::new(Ur5::default());
+    let model = CollisionModel::new(Arm::default());
     let tree = generate(20, 4, &ScaParams::default()).unwrap();
     let post = Obstacle::Box {
         centre: Point3::new(-0.2, 0.35, 0.4),
@@ -222,11 +222,11 @@ fn conservative_advancement_accepts_only_free_edges() {
     let (mut ca_poses, mut fixed_poses) = (0usize, 0usize);
     while total < 400 {
         // Edges around the arm's working poses toward the tree.
-        let a: Config = std::array::from_fn(|i| START[i] + rng.random_range(-1.2..1.2));
+        let a: Config = Config::from_fn(6, |i| START[i] + rng.random_range(-1.2..1.2));
         if !scene.config_valid(&a) {
             continue;
         }
-        let b: Config = std::array::from_fn(|i| a[i] + rng.random_range(-0.6..0.6));
+        let b: Config = Config::from_fn(6, |i| a[i] + rng.random_range(-0.6..0.6));
         total += 1;
         let check = scene.edge_check(&a, &b);
         let dense = dense_path_is_free(&model, &obstacles, &[a, b]);
@@ -272,8 +272,11 @@ fn lazy_rrt_star_returns_free_paths_with_fewer_edge_checks() {
             self.1.set(self.1.get() + 1);
             self.0.edge_valid(a, b)
         }
+        fn joint_limits(&self) -> Vec<(f64, f64)> {
+            self.0.joint_limits()
+        }
     }
-    let model = CollisionModel::new(Ur5::default());
+    let model = CollisionModel::new(Arm::default());
     let obstacles = fence(bearing_between());
     let scene = PlanningScene::new(&model, &obstacles, Allowed::default());
     let mut edges = [0usize; 2];
@@ -332,11 +335,14 @@ impl MotionValidator for EdgeCounter {
         self.edges.set(self.edges.get() + 1);
         !self.block_all && self.scene.as_ref().is_none_or(|s| s.edge_valid(a, b))
     }
+    fn joint_limits(&self) -> Vec<(f64, f64)> {
+        treemanip::robot::ur5::JOINT_LIMITS.to_vec()
+    }
 }
 
 #[test]
 fn a_free_direct_edge_to_the_nearest_goal_ends_the_search_at_once() {
-    let model: &'static CollisionModel = Box::leak(Box::new(CollisionModel::new(Ur5::default())));
+    let model: &'static CollisionModel = Box::leak(Box::new(CollisionModel::new(Arm::default())));
     // The fence stands behind the arm: nothing between START and GOAL.
     let obstacles: &'static TreeObstacles =
         Box::leak(Box::new(fence(bearing_between() + std::f64::consts::PI)));
@@ -345,7 +351,7 @@ fn a_free_direct_edge_to_the_nearest_goal_ends_the_search_at_once() {
         scene: Some(PlanningScene::new(model, obstacles, Allowed::default())),
         edges: std::cell::Cell::new(0),
     };
-    let farther: Config = [1.6, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.4];
+    let farther: Config = Config::new([1.6, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.4]);
     for lazy in [true, false] {
         counter.edges.set(0);
         let options = RrtStarOptions {
@@ -374,7 +380,7 @@ fn shortcut_never_checks_a_blocked_pair_twice() {
         edges: std::cell::Cell::new(0),
     };
     let path: Vec<Config> = (0..5)
-        .map(|k| [0.1 * k as f64, 0.05 * (k % 2) as f64, 0.0, 0.0, 0.0, 0.0])
+        .map(|k| Config::new([0.1 * k as f64, 0.05 * (k % 2) as f64, 0.0, 0.0, 0.0, 0.0]))
         .collect();
     // Three waypoints have one pair to try; five have six.
     for (len, pairs) in [(3, 1), (5, 6)] {

@@ -342,7 +342,7 @@ fn policy_ranks_every_pushable_node_and_plan_runs_algorithm_1() {
             .iter()
             .map(|v| v.as_f64().unwrap())
             .collect();
-        for (a, b) in start.iter().zip(treemanip::robot::ur5::HOME) {
+        for (a, b) in start.iter().zip(treemanip::robot::ur5::HOME.iter()) {
             assert!((a - b).abs() < 1e-9, "the trajectory starts at home");
         }
         let k = answer["push_start_index"].as_u64().unwrap() as usize;
@@ -439,8 +439,8 @@ fn policy_ranks_every_pushable_node_and_plan_runs_algorithm_1() {
     }
     // A start pose that collides (the stretched-out arm crosses the trunk).
     use treemanip::robot::rrt::MotionValidator;
-    let zero = [0.0; 6];
-    let model = treemanip::robot::collision::CollisionModel::new(treemanip::robot::Ur5::default());
+    let zero = treemanip::robot::rrt::Config::zeros(6);
+    let model = treemanip::robot::collision::CollisionModel::new(treemanip::robot::Arm::default());
     let obstacles = treemanip::robot::collision::TreeObstacles::new(&tree);
     let scene = treemanip::robot::scene::PlanningScene::new(
         &model,

@@ -8,7 +8,7 @@ use std::process::Command;
 use nalgebra::{Isometry3, Vector3};
 use serde_json::{Value, json};
 use treemanip::api::tree_json::TreeJson;
-use treemanip::robot::ur5::Ur5;
+use treemanip::robot::Arm;
 use treemanip::tree::sca::{ScaParams, generate};
 use treemanip::tree::urdf::to_urdf_string;
 use treemanip::tree::{MAX_NODES, Wood};
@@ -159,7 +159,7 @@ fn link_poses_are_the_planners_kinematics() {
         json!({ "base": { "position": [-0.4, 0.3, 0.2], "yaw": 0.7 }, "configurations": qs });
     let (status, body) = server.json("POST", "/v1/robot/link-poses", &request);
     assert_eq!(status, 200, "{body}");
-    let robot = Ur5::default().with_base(Isometry3::new(
+    let robot = Arm::default().with_base(Isometry3::new(
         Vector3::new(-0.4, 0.3, 0.2),
         Vector3::z() * 0.7,
     ));
@@ -197,10 +197,17 @@ fn link_poses_are_the_planners_kinematics() {
     assert_eq!(body["base"]["position"], json!([-0.5, 0.0, 0.1]));
     for (bad, field) in [
         (json!({ "configurations": [] }), "configurations"),
-        (json!({ "configurations": [[0, 0, 0]] }), "configurations"),
         (
-            json!({ "configurations": [[0, 0, 0, 0, 0, 99]] }),
-            "configurations",
+            json!({ "configurations": [[0, 0, 0]] }),
+            "configurations[0]",
+        ),
+        (
+            json!({ "configurations": [[0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 99]] }),
+            "configurations[1]",
+        ),
+        (
+            json!({ "robot": "abb", "configurations": [[0, 0, 0, 0, 0, 0]] }),
+            "robot",
         ),
         (
             json!({ "base": { "position": [9, 0, 0] }, "configurations": [[0, 0, 0, 0, 0, 0]] }),

@@ -17,10 +17,12 @@ use treemanip::eval::plan::{
 use treemanip::eval::plots::rank_histogram_svg;
 use treemanip::infer::models::{ModelSet, ServedModel, SessionLayout};
 use treemanip::planner::{Objective, Planner, Query, Stance, Strategy};
+use treemanip::robot::collision::CollisionModel;
+use treemanip::robot::joint_vector::JointVector;
 use treemanip::robot::ur5;
 use treemanip::sim::{Push, SimConfig, simulate};
 
-use crate::args::{parse_numbers, parse_vector};
+use crate::args::parse_vector;
 use crate::trees::{NodeSizes, parse_sizes};
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -66,10 +68,15 @@ pub struct PlanArgs {
     /// Plan without load limits (as the paper did).
     #[arg(long, conflicts_with_all = ["max_stress", "max_contact_force"])]
     no_limits: bool,
-    /// Start joint configuration (rad), six comma-separated values.
-    /// Default: the paper's home pose.
-    #[arg(long, value_parser = parse_numbers::<6>, allow_hyphen_values = true)]
-    start: Option<[f64; 6]>,
+    /// Start joint configuration (rad), one comma-separated value per joint.
+    /// Default: the arm's home (for the UR5, the paper's).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    start: Option<Vec<f64>>,
+    /// The arm: `ur5` (built in), a shipped description's name (`panda`:
+    /// `robots/panda.toml`), a description or URDF path, or
+    /// `NAME=PATH[,tip=LINK][,base=LINK]`.
+    #[arg(long, default_value = "ur5")]
+    robot: String,
     /// Arm base position `X,Y,Z` (m), identity orientation. Default: the
     /// paper's (−0.5, 0, 0.1).
     #[arg(long, value_parser = parse_vector, allow_hyphen_values = true, conflicts_with = "base_region")]
@@ -137,6 +144,16 @@ pub(crate) fn gnns(set: &ModelSet) -> (&ServedModel, &ServedModel) {
 }
 
 pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
+    let arm = resolve_robot(&args.robot)?;
+    if let Some(q) = &args.start {
+        if !arm.within_limits(q) {
+            bail!(
+                "--start needs {} values within the joints' limits of `{}`",
+                arm.dof(),
+                arm.name()
+            );
+        }
+    }
     let tree = treemanip::tree::urdf::read_file(&args.tree)
         .with_context(|| format!("cannot load tree {}", args.tree.display()))?;
     let objective = match (&args.objective, args.node, args.push) {
@@ -165,7 +182,7 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
     let mut query = Query::with_objective(tree, objective);
     query.limits = (!args.no_limits).then_some(limits);
     query.strategy = args.strategy.into();
-    query.start = args.start;
+    query.start = args.start.as_deref().map(JointVector::from_slice);
     query.seed = args.seed;
     query.stance = if args.base_region {
         Stance::Region(evaluation_region())
@@ -175,14 +192,16 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
                 .map_or_else(ur5::default_base, |b| Isometry3::translation(b.x, b.y, b.z)),
         )
     };
-    let plan = Planner::default()
+    let planner = Planner::new(CollisionModel::new(arm.with_base(ur5::default_base())));
+    let plan = planner
         .plan(&query, policy, Some(forward))
         .context("cannot plan")?;
     if args.json {
         #[derive(serde::Serialize)]
         struct PlanJson<'a> {
             status: &'static str,
-            joint_names: [&'static str; 6],
+            robot: &'a str,
+            joint_names: Vec<&'a str>,
             #[serde(flatten)]
             plan: &'a treemanip::planner::Plan,
         }
@@ -192,7 +211,8 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
             } else {
                 "no_plan"
             },
-            joint_names: ur5::JOINT_NAMES,
+            robot: planner.robot().name(),
+            joint_names: planner.robot().joint_names().collect(),
             plan: &plan,
         };
         println!("{}", serde_json::to_string_pretty(&json)?);
@@ -258,9 +278,19 @@ pub struct EvalPlanArgs {
     /// Directory of the ONNX models.
     #[arg(long, default_value = "models")]
     models_dir: PathBuf,
-    /// Where to write plan_eval.{md,json} and plan_fig10_*.svg.
+    /// Where to write plan_eval.{md,json} and plan_fig10_*.svg
+    /// (plan_eval_ROBOT.* and plan_fig10_ROBOT_* for another arm).
     #[arg(long, default_value = "docs/results")]
     out: PathBuf,
+    /// The arm (as `treemanip plan --robot`).
+    #[arg(long, default_value = "ur5")]
+    robot: String,
+}
+
+/// The arm a `--robot` value names ([`treemanip::robot::catalog::resolve`]).
+fn resolve_robot(text: &str) -> anyhow::Result<treemanip::robot::Arm> {
+    let packages = treemanip::robot::link_geometry::package_path_from_env();
+    Ok(treemanip::robot::catalog::resolve(text, &packages)?)
 }
 
 pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
@@ -275,7 +305,23 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
         .collect();
     let set = load_models(&args.models_dir)?;
     let (policy, forward) = gnns(&set);
-    let planner = Planner::default();
+    let arm = resolve_robot(&args.robot)?;
+    let suffix = if args.robot == treemanip::robot::catalog::BUILT_IN {
+        String::new()
+    } else {
+        format!("_{}", arm.name())
+    };
+    let robot_note = format!(
+        "Robot: `{}` ({} joints, {} IK).",
+        arm.name(),
+        arm.dof(),
+        if arm.has_closed_form_ik() {
+            "closed-form"
+        } else {
+            "numerical"
+        }
+    );
+    let planner = Planner::new(CollisionModel::new(arm.with_base(ur5::default_base())));
     let mut rows = Vec::new();
     let mut per_setting: Vec<(String, Vec<EpisodeResult>)> = Vec::new();
     for setting in Setting::all() {
@@ -336,16 +382,21 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
     let table = to_markdown(&rows);
     let cpu = treemanip::nn::train::checkpoint::cpu_model();
     let md = format!(
-        "# Planning evaluation\n\n`treemanip eval plan --per-size {} --seed {}` on the test split, N = {:?}, {} episodes per setting, one at a time; CPU: {cpu}, {} threads.\nThe target is the episode's final shape; the planner gets the tree and the target only and ranks with the contact policy. Executed error: the planned push run in the simulator, largest node distance to the target; an episode with no plan counts as No Action. Base region: x and y within ±0.5 m of the default base, z 0.1-1.0 m.\n\n{table}",
+        "# Planning evaluation\n\n`treemanip eval plan --per-size {} --seed {}{}` on the test split, N = {:?}, {} episodes per setting, one at a time; CPU: {cpu}, {} threads.\nThe target is the episode's final shape; the planner gets the tree and the target only and ranks with the contact policy. Executed error: the planned push run in the simulator, largest node distance to the target; an episode with no plan counts as No Action. Base region: x and y within ±0.5 m of the default base, z 0.1-1.0 m. {robot_note}\n\n{table}",
         args.per_size,
         args.seed,
+        if suffix.is_empty() {
+            String::new()
+        } else {
+            format!(" --robot {}", args.robot)
+        },
         args.sizes.0,
         episodes.len(),
         rayon::current_num_threads()
     );
-    std::fs::write(args.out.join("plan_eval.md"), &md)?;
+    std::fs::write(args.out.join(format!("plan_eval{suffix}.md")), &md)?;
     std::fs::write(
-        args.out.join("plan_eval.json"),
+        args.out.join(format!("plan_eval{suffix}.json")),
         serde_json::to_string_pretty(
             &serde_json::json!({ "rows": rows, "episodes": per_setting }),
         )?,
@@ -353,7 +404,7 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
     for (row, (name, _)) in rows.iter().zip(&per_setting) {
         let figure = args
             .out
-            .join(format!("plan_fig10_{}.svg", name.replace('/', "_")));
+            .join(format!("plan_fig10{suffix}_{}.svg", name.replace('/', "_")));
         rank_histogram_svg(
             &row.rank_histogram,
             row.episodes,

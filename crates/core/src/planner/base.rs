@@ -6,7 +6,6 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
 use crate::robot::rrt::Config;
-use crate::robot::ur5;
 use crate::sim::{GRIP_OFFSET, Push};
 use crate::tree::Tree;
 
@@ -119,12 +118,37 @@ pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push) -> Vec<BasePose>
 }
 
 /// Start configurations tried at a chosen base when the request gives none:
-/// the paper's home pose, then the arm folded up and back from the tree.
-pub fn tucked_starts() -> [Config; 3] {
+/// the arm's home, then (for UR kinematics) the arm folded up and back from
+/// the tree, or (any other arm) home turned a quarter turn either way about
+/// the first joint, where the joint allows.
+pub fn tucked_starts(arm: &crate::robot::Arm) -> Vec<Config> {
     use std::f64::consts::{FRAC_PI_2, PI};
-    [
-        ur5::HOME,
-        [0.0, -FRAC_PI_2, 2.6, -PI / 2.0 - 0.5, -FRAC_PI_2, 0.0],
-        [PI, -FRAC_PI_2, 2.6, -PI / 2.0 - 0.5, -FRAC_PI_2, 0.0],
-    ]
+    let home = arm.home();
+    let mut out = vec![home];
+    if arm.has_closed_form_ik() {
+        out.push(Config::from([
+            0.0,
+            -FRAC_PI_2,
+            2.6,
+            -PI / 2.0 - 0.5,
+            -FRAC_PI_2,
+            0.0,
+        ]));
+        out.push(Config::from([
+            PI,
+            -FRAC_PI_2,
+            2.6,
+            -PI / 2.0 - 0.5,
+            -FRAC_PI_2,
+            0.0,
+        ]));
+    } else {
+        for turn in [FRAC_PI_2, -FRAC_PI_2] {
+            let mut q = home;
+            q[0] += turn;
+            out.push(q);
+        }
+    }
+    out.retain(|q| arm.within_limits(q));
+    out
 }

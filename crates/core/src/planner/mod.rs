@@ -37,7 +37,7 @@ use crate::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use crate::robot::plan::{Outcome, PushPlan};
 use crate::robot::rrt::{Config, MotionValidator};
 use crate::robot::scene::PlanningScene;
-use crate::robot::{Ur5, ur5};
+use crate::robot::{Arm, ur5};
 use crate::sim::Push;
 use crate::sim::loads::PushLoads;
 use crate::tree::Tree;
@@ -162,7 +162,7 @@ pub struct Planner {
 
 impl Default for Planner {
     fn default() -> Self {
-        Self::new(CollisionModel::new(Ur5::default()))
+        Self::new(CollisionModel::new(Arm::default()))
     }
 }
 
@@ -179,7 +179,7 @@ impl Planner {
     }
 
     /// The arm's kinematics and shapes (at its default base).
-    pub fn robot(&self) -> &Ur5 {
+    pub fn robot(&self) -> &Arm {
         &self.arm.robot
     }
 
@@ -206,7 +206,7 @@ impl Planner {
             Stance::Fixed(base) => Some(self.placed_at(base)),
             Stance::Region(_) => None,
         };
-        let start = start.unwrap_or(ur5::HOME);
+        let start = start.unwrap_or_else(|| self.arm.robot.home());
         move |push: &Push| match (&fixed, stance) {
             (Some(arm), _) => crate::robot::plan::reach(arm, tree, &rest, push, &start).is_ok(),
             (None, Stance::Region(region)) => {
@@ -275,7 +275,7 @@ impl Planner {
         let fixed = match &query.stance {
             Stance::Fixed(base) => {
                 let arm = self.placed_at(base);
-                let start = query.start.unwrap_or(ur5::HOME);
+                let start = query.start.unwrap_or_else(|| self.arm.robot.home());
                 let free = PlanningScene::new(&arm, &rest, Allowed::default());
                 if !free.config_valid(&start) {
                     return Err(PlanError::StartInCollision);
@@ -519,7 +519,7 @@ impl Planner {
             (None, Some(f)) => (f.pose, f.start, false),
             (None, None) => (
                 BasePose::of(&ur5::default_base()),
-                query.start.unwrap_or(ur5::HOME),
+                query.start.unwrap_or_else(|| self.arm.robot.home()),
                 false,
             ),
         };

@@ -11,7 +11,6 @@ use crate::robot::collision::{Allowed, TreeObstacles};
 use crate::robot::plan::{Outcome, PlanOptions, PushPlan, PushSnapshots, execute, reach};
 use crate::robot::rrt::MotionValidator;
 use crate::robot::scene::PlanningScene;
-use crate::robot::ur5;
 use crate::sim::Push;
 use crate::sim::loads::PushLoads;
 
@@ -79,7 +78,7 @@ impl Run<'_> {
                     let free = PlanningScene::new(&arm, self.rest, Allowed::default());
                     let start = match self.query.start {
                         Some(q) => free.config_valid(&q).then_some(q),
-                        None => base::tucked_starts()
+                        None => base::tucked_starts(&arm.robot)
                             .into_iter()
                             .find(|q| free.config_valid(q)),
                     }?;
@@ -253,7 +252,7 @@ pub(super) fn reach_in_region(
     let mut outcome = Outcome::Unreachable;
     for pose in base::proposals(region, tree, push) {
         let arm = planner.placed_at(&pose.isometry());
-        match reach(&arm, tree, rest, push, &ur5::HOME) {
+        match reach(&arm, tree, rest, push, &arm.robot.home()) {
             Ok(_) => return Ok(()),
             Err(o) => outcome = worst_to_best(outcome, o),
         }

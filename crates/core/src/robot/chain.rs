@@ -392,3 +392,15 @@ impl Chain {
         (pose, jac)
     }
 }
+
+impl JointKind {
+    /// The URDF's name of the kind.
+    pub fn name(self) -> &'static str {
+        match self {
+            JointKind::Revolute => "revolute",
+            JointKind::Continuous => "continuous",
+            JointKind::Prismatic => "prismatic",
+            JointKind::Fixed => "fixed",
+        }
+    }
+}

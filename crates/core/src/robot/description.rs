@@ -29,10 +29,11 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::chain::{Chain, ChainJoint, JointKind, Mimic, parse_urdf};
-use super::link_geometry::{LinkShape, link_geometry};
+use super::chain::{Chain, ChainJoint, JointKind, Mimic};
+pub use super::import::import;
+use super::link_geometry::LinkShape;
 use super::mesh_fit::Capsule;
-use super::self_collision::{DisableReason, DisabledPair, all_link_poses, disabled_pairs};
+use super::self_collision::DisabledPair;
 
 /// Acceleration limit when the configuration gives none: rad/s² for
 /// revolute joints (the UR5's, a conservative value for most arms).
@@ -51,7 +52,7 @@ pub enum PerJoint {
 }
 
 impl PerJoint {
-    fn values(&self, dof: usize, what: &str) -> Result<Vec<f64>, String> {
+    pub(crate) fn values(&self, dof: usize, what: &str) -> Result<Vec<f64>, String> {
         let v = match self {
             PerJoint::All(x) => vec![*x; dof],
             PerJoint::Each(v) if v.len() == dof => v.clone(),
@@ -86,6 +87,40 @@ pub struct RobotConfig {
     /// Where the URDF comes from and under which licence.
     #[serde(default)]
     pub licence: String,
+    /// Where the pusher tool sits on the tip (default: the ⊔ gripper on
+    /// the tip's origin, pushing along its z).
+    #[serde(default)]
+    pub tool: ToolSpec,
+}
+
+/// Where the pusher tool sits on the tip link.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToolSpec {
+    /// Where the ⊔ gripper's standoff is bolted, in the tip link's frame;
+    /// the gripper pushes along this frame's z, and the tool frame (the
+    /// palm's face, see [`crate::robot::ur5`]) is `TOOL_OFFSET` further
+    /// along it. Put it past whatever the tip already carries (a hand's
+    /// fingers) and turn it so that z leaves the flange.
+    #[serde(default = "PoseSpec::identity")]
+    pub mount: PoseSpec,
+    /// Whether the ⊔ gripper's boxes are added to the tip; false when the
+    /// URDF carries the tool's geometry itself (the built-in UR5's does).
+    #[serde(default = "yes")]
+    pub gripper: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Default for ToolSpec {
+    fn default() -> Self {
+        Self {
+            mount: PoseSpec::identity(),
+            gripper: true,
+        }
+    }
 }
 
 /// A pose as URDF writes it.
@@ -107,6 +142,13 @@ impl From<&Isometry3<f64>> for PoseSpec {
 }
 
 impl PoseSpec {
+    pub fn identity() -> Self {
+        Self {
+            xyz: [0.0; 3],
+            rpy: [0.0; 3],
+        }
+    }
+
     pub fn isometry(&self) -> Isometry3<f64> {
         let [x, y, z] = self.xyz;
         let [r, p, w] = self.rpy;
@@ -198,6 +240,8 @@ pub struct RobotDescription {
     pub joints: Vec<JointSpec>,
     pub links: Vec<LinkSpec>,
     pub disabled_pairs: Vec<DisabledPair>,
+    #[serde(default)]
+    pub tool: ToolSpec,
     pub source: Provenance,
 }
 
@@ -210,11 +254,11 @@ pub struct DescriptionError {
     pub message: String,
 }
 
-fn arr(v: &Vector3<f64>) -> [f64; 3] {
+pub(crate) fn arr(v: &Vector3<f64>) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
-fn shape_spec(s: &LinkShape) -> ShapeSpec {
+pub(crate) fn shape_spec(s: &LinkShape) -> ShapeSpec {
     match s {
         LinkShape::Capsule(c) => ShapeSpec::Capsule {
             a: arr(&c.a.coords),
@@ -280,188 +324,6 @@ impl ShapeSpec {
             },
         })
     }
-}
-
-fn kind_name(kind: JointKind) -> &'static str {
-    match kind {
-        JointKind::Revolute => "revolute",
-        JointKind::Continuous => "continuous",
-        JointKind::Prismatic => "prismatic",
-        JointKind::Fixed => "fixed",
-    }
-}
-
-/// Imports the robot that the configuration at `config_path` describes:
-/// reads its URDF and meshes (through `packages` and the URDF's
-/// ancestors), fits the meshes, samples the self-collision pairs.
-pub fn import(
-    config_path: &Path,
-    packages: &[PathBuf],
-    command: &str,
-) -> Result<RobotDescription, DescriptionError> {
-    let fail = |file: &Path, message: String| DescriptionError {
-        file: file.to_path_buf(),
-        message,
-    };
-    let text = std::fs::read_to_string(config_path)
-        .map_err(|e| fail(config_path, format!("cannot be read: {e}")))?;
-    let config: RobotConfig =
-        toml::from_str(&text).map_err(|e| fail(config_path, e.to_string()))?;
-    let urdf_path = config_path
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join(&config.urdf);
-    let urdf_text = std::fs::read_to_string(&urdf_path)
-        .map_err(|e| fail(&urdf_path, format!("cannot be read: {e}")))?;
-    let robot = parse_urdf(&urdf_text).map_err(|e| fail(&urdf_path, e.to_string()))?;
-    let chain = Chain::from_robot(
-        &robot,
-        config.base_link.as_deref(),
-        config.tip_link.as_deref(),
-    )
-    .map_err(|e| fail(&urdf_path, e.to_string()))?;
-    let dof = chain.dof();
-    let acceleration = config
-        .acceleration
-        .as_ref()
-        .map(|a| a.values(dof, "acceleration"))
-        .transpose()
-        .map_err(|m| fail(config_path, m))?;
-    let jerk = config
-        .jerk
-        .as_ref()
-        .map(|a| a.values(dof, "jerk"))
-        .transpose()
-        .map_err(|m| fail(config_path, m))?;
-    let limits = chain.limits();
-    let home = match &config.home {
-        Some(h) if h.len() != dof => {
-            return Err(fail(
-                config_path,
-                format!("home: {} values for a {dof}-joint chain", h.len()),
-            ));
-        }
-        Some(h) => {
-            if let Some(k) = h
-                .iter()
-                .zip(&limits)
-                .position(|(q, (lo, hi))| !(q.is_finite() && *lo <= *q && q <= hi))
-            {
-                return Err(fail(
-                    config_path,
-                    format!("home[{k}] = {} is outside the joint's limits", h[k]),
-                ));
-            }
-            h.clone()
-        }
-        // Continuous joints' ±∞ limits leave 0 as it is.
-        None => limits.iter().map(|(lo, hi)| 0f64.clamp(*lo, *hi)).collect(),
-    };
-    let geometry = link_geometry(&robot, urdf_path.parent(), packages)
-        .map_err(|e| fail(&urdf_path, e.to_string()))?;
-    let mut pairs = disabled_pairs(&robot, &chain, &geometry, SELF_COLLISION_SAMPLES, 0);
-    for [a, b] in &config.disabled_pairs {
-        for l in [a, b] {
-            if !robot.links.iter().any(|x| &x.name == l) {
-                return Err(fail(
-                    config_path,
-                    format!("disabled_pairs: link `{l}` is not in the URDF"),
-                ));
-            }
-        }
-        if !pairs
-            .iter()
-            .any(|p| (&p.a == a && &p.b == b) || (&p.a == b && &p.b == a))
-        {
-            pairs.push(DisabledPair {
-                a: a.clone(),
-                b: b.clone(),
-                reason: DisableReason::Configured,
-            });
-        }
-    }
-    // Each link with shapes, on the chain link it rides on.
-    let zero = vec![0.0; dof];
-    let poses = all_link_poses(&robot, &chain, &zero);
-    let chain_links: Vec<&str> = std::iter::once(chain.base_link.as_str())
-        .chain(chain.joints.iter().map(|j| j.child_link.as_str()))
-        .collect();
-    let parent_of = |link: &str| {
-        robot
-            .joints
-            .iter()
-            .find(|j| j.child.link == link)
-            .map(|j| j.parent.link.as_str())
-    };
-    let mut links = Vec::new();
-    for g in &geometry {
-        let mut frame = g.link.as_str();
-        while !chain_links.contains(&frame) {
-            match parent_of(frame) {
-                Some(p) => frame = p,
-                None => break,
-            }
-        }
-        if !chain_links.contains(&frame) {
-            // Above the chain's base: fixed relative to it.
-            frame = chain.base_link.as_str();
-        }
-        let (Some(at), Some(of)) = (poses.get(&g.link), poses.get(frame)) else {
-            continue;
-        };
-        links.push(LinkSpec {
-            name: g.link.clone(),
-            frame: frame.to_owned(),
-            pose: (&(of.inverse() * at)).into(),
-            shapes: g.shapes.iter().map(shape_spec).collect(),
-        });
-    }
-    let joints = chain
-        .joints
-        .iter()
-        .map(|j| {
-            let v = j.variable;
-            let is_linear = j.kind == JointKind::Prismatic;
-            let default_acc = if is_linear {
-                DEFAULT_LINEAR_ACCELERATION
-            } else {
-                DEFAULT_ACCELERATION
-            };
-            JointSpec {
-                name: j.name.clone(),
-                kind: kind_name(j.kind).to_owned(),
-                child: j.child_link.clone(),
-                origin: (&j.origin).into(),
-                axis: arr(&j.axis),
-                lower: j.lower.is_finite().then_some(j.lower),
-                upper: j.upper.is_finite().then_some(j.upper),
-                velocity: v.map(|_| j.velocity),
-                acceleration: v.map(|k| acceleration.as_ref().map_or(default_acc, |a| a[k])),
-                jerk: v.and_then(|k| jerk.as_ref().map(|a| a[k])),
-                mimic_joint: j
-                    .mimic
-                    .and_then(|m| chain.variables().nth(m.variable).map(|x| x.name.clone())),
-                mimic_multiplier: j.mimic.map(|m| m.multiplier),
-                mimic_offset: j.mimic.map(|m| m.offset),
-            }
-        })
-        .collect();
-    Ok(RobotDescription {
-        name: config.name,
-        base_link: chain.base_link.clone(),
-        tip_link: chain.tip_link.clone(),
-        dof,
-        home,
-        joints,
-        links,
-        disabled_pairs: pairs,
-        source: Provenance {
-            urdf: config.urdf.display().to_string(),
-            licence: config.licence,
-            command: command.to_owned(),
-            self_collision_samples: SELF_COLLISION_SAMPLES,
-        },
-    })
 }
 
 impl RobotDescription {

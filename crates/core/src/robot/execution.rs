@@ -8,11 +8,10 @@
 
 use nalgebra::{Isometry3, Translation3, Vector3};
 
-use super::Ur5;
+use super::Arm;
 use super::ros::{JointTrajectory, JointTrajectoryPoint, RosDuration};
 use super::rrt::{Config, MotionValidator};
 use super::timing::{SplinePath, TimedPath, time_optimal};
-use super::ur5::{JOINT_NAMES, MAX_ACCELERATION, MAX_VELOCITY};
 
 /// How the trajectory is timed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -86,7 +85,7 @@ fn approach_timing(
     let samples: Vec<Config> = (0..=steps)
         .map(|k| {
             let (q, _, _) = spline.eval(spline.length() * k as f64 / steps as f64);
-            std::array::from_fn(|i| q[i])
+            Config::from_slice(q.as_slice())
         })
         .collect();
     let free = samples.iter().all(|q| scene.config_valid(q))
@@ -135,7 +134,7 @@ fn push_profile(length: f64, speed: f64, acceleration: f64) -> (f64, impl Fn(f64
 /// sample), velocities and accelerations by central differences of them.
 /// `None` when IK leaves the branch it started on.
 fn push_samples(
-    arm: &Ur5,
+    arm: &Arm,
     start: &Config,
     direction: &Vector3<f64>,
     length: f64,
@@ -159,9 +158,9 @@ fn push_samples(
         let q = if k == 0 {
             *start
         } else {
-            *arm.inverse_kinematics(&pose, &previous).first()?
+            arm.inverse_kinematics_near(&pose, &previous)?
         };
-        if (0..6).any(|i| (q[i] - previous[i]).abs() > 0.2) {
+        if q.max_abs_diff(&previous) > 0.2 {
             return None;
         }
         previous = q;
@@ -172,10 +171,11 @@ fn push_samples(
 
 /// Velocities and accelerations of timed samples by central differences;
 /// zero at both ends (the push starts and ends at rest).
-fn central_differences(samples: &[(f64, Config)]) -> Vec<([f64; 6], [f64; 6])> {
+fn central_differences(samples: &[(f64, Config)]) -> Vec<(Config, Config)> {
+    let dof = samples.first().map_or(0, |s| s.1.len());
     (0..samples.len())
         .map(|k| {
-            let mut out = ([0.0; 6], [0.0; 6]);
+            let mut out = (Config::zeros(dof), Config::zeros(dof));
             if k == 0 || k + 1 >= samples.len() {
                 return out;
             }
@@ -184,7 +184,7 @@ fn central_differences(samples: &[(f64, Config)]) -> Vec<([f64; 6], [f64; 6])> {
             if h1 <= 0.0 || h2 <= 0.0 {
                 return out;
             }
-            for i in 0..6 {
+            for i in 0..dof {
                 out.0[i] = (c.1[i] - a.1[i]) / (h1 + h2);
                 out.1[i] = ((c.1[i] - b.1[i]) / h2 - (b.1[i] - a.1[i]) / h1) * 2.0 / (h1 + h2);
             }
@@ -200,11 +200,7 @@ fn central_differences(samples: &[(f64, Config)]) -> Vec<([f64; 6], [f64; 6])> {
 /// acceleration that leaves rest and reaches the next sample,
 /// 2 (q₁ − q₀)/h², and the jump to the next sample's velocity, v₁/h (and
 /// the same backward at the end).
-fn at_rest_ends(
-    samples: &[(f64, Config)],
-    derivatives: &[([f64; 6], [f64; 6])],
-    amax: &[f64],
-) -> f64 {
+fn at_rest_ends(samples: &[(f64, Config)], derivatives: &[(Config, Config)], amax: &[f64]) -> f64 {
     let n = samples.len();
     if n < 2 {
         return 0.0;
@@ -215,7 +211,7 @@ fn at_rest_ends(
         if h <= 0.0 {
             continue;
         }
-        for (i, limit) in amax.iter().enumerate().take(6) {
+        for (i, limit) in amax.iter().enumerate() {
             let leave = 2.0 * (samples[next].1[i] - samples[rest].1[i]).abs() / (h * h);
             let jump = derivatives[next].0[i].abs() / h;
             worst = worst.max(leave.max(jump) / limit);
@@ -228,18 +224,20 @@ fn at_rest_ends(
 /// `scene` when blended), push `length` along `direction` from the
 /// approach's end, hold, release, retreat.
 pub fn execution(
-    arm: &Ur5,
+    arm: &Arm,
     scene: &dyn MotionValidator,
     approach: &[Config],
     direction: &Vector3<f64>,
     length: f64,
     options: &ExecutionOptions,
 ) -> Option<Execution> {
-    let vmax: Vec<f64> = MAX_VELOCITY
+    let vmax: Vec<f64> = arm
+        .velocity_limits()
         .iter()
         .map(|v| v * options.velocity_scaling)
         .collect();
-    let amax: Vec<f64> = MAX_ACCELERATION
+    let amax: Vec<f64> = arm
+        .acceleration_limits()
         .iter()
         .map(|a| a * options.acceleration_scaling)
         .collect();
@@ -275,7 +273,7 @@ pub fn execution(
         let worst = derivatives
             .iter()
             .flat_map(|(v, a)| {
-                (0..6).map(move |i| (v[i].abs() / vmax[i]).max(a[i].abs() / amax[i]))
+                (0..v.len()).map(move |i| (v[i].abs() / vmax[i]).max(a[i].abs() / amax[i]))
             })
             .fold(at_rest_ends(&samples, &derivatives, amax), f64::max);
         if worst <= 1.0 {
@@ -293,7 +291,7 @@ pub fn execution(
     }
     let push_end_point = points.len() - 1;
     let held = samples.last()?.1;
-    let zero = [0.0; 6];
+    let zero = Config::zeros(arm.dof());
     let mut t = t0 + push_time + options.hold_s.max(0.0);
     if options.hold_s > 0.0 {
         points.push(point(&held, &zero, &zero, t));
@@ -312,7 +310,7 @@ pub fn execution(
     }
     Some(Execution {
         joint_trajectory: JointTrajectory {
-            joint_names: JOINT_NAMES.iter().map(|s| (*s).to_owned()).collect(),
+            joint_names: arm.joint_names().map(str::to_owned).collect(),
             points,
         },
         push_start_point,

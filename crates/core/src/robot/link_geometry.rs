@@ -48,6 +48,59 @@ pub enum LinkShape {
     Capsule(Capsule),
 }
 
+impl LinkShape {
+    /// This shape moved by `pose`.
+    pub fn placed(&self, pose: &Isometry3<f64>) -> LinkShape {
+        match self {
+            LinkShape::Capsule(c) => {
+                let mut c = *c;
+                c.a = pose * c.a;
+                c.b = pose * c.b;
+                LinkShape::Capsule(c)
+            }
+            LinkShape::Sphere { center, radius } => LinkShape::Sphere {
+                center: pose * center,
+                radius: *radius,
+            },
+            LinkShape::Box {
+                pose: at,
+                half_extents,
+            } => LinkShape::Box {
+                pose: pose * at,
+                half_extents: *half_extents,
+            },
+            LinkShape::Cylinder {
+                pose: at,
+                radius,
+                half_length,
+            } => LinkShape::Cylinder {
+                pose: pose * at,
+                radius: *radius,
+                half_length: *half_length,
+            },
+        }
+    }
+
+    /// How far the shape reaches from its link's origin (m).
+    pub fn reach(&self) -> f64 {
+        match self {
+            LinkShape::Capsule(c) => c.a.coords.norm().max(c.b.coords.norm()) + c.radius,
+            LinkShape::Sphere { center, radius } => center.coords.norm() + radius,
+            LinkShape::Box { pose, half_extents } => {
+                pose.translation.vector.norm() + half_extents.norm()
+            }
+            LinkShape::Cylinder {
+                pose,
+                radius,
+                half_length,
+            } => {
+                pose.translation.vector.norm()
+                    + (radius * radius + half_length * half_length).sqrt()
+            }
+        }
+    }
+}
+
 /// How one mesh was approximated.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeshReport {

@@ -1,6 +1,10 @@
-//! The robot side: the UR5 with its ⊔ gripper, inverse kinematics, collision
-//! checking against the tree, RRT* and the paper's Algorithm 1.
+//! The robot side: any arm from its URDF ([`arm`], [`description`],
+//! [`catalog`]; the built-in UR5 with its ⊔ gripper in [`ur5`]), inverse
+//! kinematics, collision checking against the tree, RRT*, the paper's
+//! Algorithm 1 and trajectories a controller executes.
 
+pub mod arm;
+pub mod catalog;
 pub mod chain;
 pub mod collision;
 pub mod description;
@@ -8,6 +12,8 @@ pub mod dh;
 pub mod execution;
 pub mod ik;
 pub mod ik_numeric;
+pub mod import;
+pub mod joint_vector;
 pub mod link_geometry;
 pub mod mesh_fit;
 pub mod plan;
@@ -20,4 +26,4 @@ pub mod trajectory;
 pub mod ur5;
 pub mod ur_kinematics;
 
-pub use ur5::Ur5;
+pub use arm::Arm;

@@ -8,7 +8,8 @@
 //!    along T̂, tool x along the branch (b̂ with its T̂ component removed), so
 //!    the slot lies across the branch. The slot is symmetric, so the pose
 //!    turned by π about z is tried too.
-//! 2. **IK**: all closed-form solutions of both poses, within limits.
+//! 2. **IK**: all solutions of both poses within limits (closed form for
+//!    UR kinematics, numerical from several starts for any other arm).
 //! 3. **Goal check**: solutions in collision are dropped. The gripper may
 //!    touch the contacted branch and the branches leaving node j; the arm's
 //!    links may touch nothing.
@@ -41,7 +42,6 @@ use super::execution::{Execution, ExecutionOptions, execution};
 use super::rrt::{Config, MotionValidator, RrtError, RrtStarOptions, distance, rrt_star, shortcut};
 use super::scene::PlanningScene;
 use super::trajectory::{TimedPoint, time_parameterize};
-use super::ur5::{MAX_ACCELERATION, MAX_VELOCITY};
 use crate::sim::loads::PushLoads;
 use crate::sim::{GRIP_OFFSET, Push, SimConfig, simulate_from};
 use crate::tree::Tree;
@@ -303,7 +303,13 @@ pub fn execute(
         options.shortcut_attempts,
         options.rrt.seed,
     );
-    let mut trajectory = time_parameterize(&smooth, &MAX_VELOCITY, &MAX_ACCELERATION, options.dt);
+    let vmax = model.robot.velocity_limits();
+    let mut trajectory = time_parameterize(
+        &smooth,
+        &vmax,
+        &model.robot.acceleration_limits(),
+        options.dt,
+    );
     let push_start_index = trajectory.len() - 1;
     let t0 = trajectory.last().map_or(0.0, |p| p.t);
     let line = &pushes[*push_index].1;
@@ -311,8 +317,8 @@ pub fn execute(
     let mut t = t0;
     for w in line.windows(2) {
         // Slow down where a joint would exceed its speed limit.
-        let joint_time = (0..6)
-            .map(|i| (w[1][i] - w[0][i]).abs() / MAX_VELOCITY[i])
+        let joint_time = (0..vmax.len())
+            .map(|i| (w[1][i] - w[0][i]).abs() / vmax[i])
             .fold(0.0, f64::max);
         t += step_time.max(joint_time);
         trajectory.push(TimedPoint { t, q: w[1] });
@@ -480,12 +486,10 @@ fn tool_line(
             start_pose.rotation,
         );
         let previous = *line.last().expect("non-empty");
-        let Some(&next) = model.robot.inverse_kinematics(&pose, &previous).first() else {
+        let Some(next) = model.robot.inverse_kinematics_near(&pose, &previous) else {
             break;
         };
-        let jump = (0..6)
-            .map(|i| (next[i] - previous[i]).abs())
-            .fold(0.0, f64::max);
+        let jump = next.max_abs_diff(&previous);
         if jump > max_jump || !step_free(&previous, &next, distance) {
             break;
         }

@@ -12,8 +12,6 @@
 use super::collision::{Allowed, CollisionModel, Hit, TreeObstacles};
 use super::rrt::{Config, MotionValidator};
 
-pub use super::collision::LEVER_ARMS;
-
 /// Default edge-check resolution δ (m): no robot point moves more than this
 /// between checked poses; shapes are grown by δ/2.
 pub const DEFAULT_RESOLUTION: f64 = 0.01;
@@ -46,16 +44,18 @@ impl<'a> PlanningScene<'a> {
     /// over the resolution, with R_i joint i's reach at `a`
     /// ([`CollisionModel::axis_reach`]) plus how far the joints beyond it
     /// can carry a point away from its axis during the edge
-    /// (Σ_{j>i} R_j^max |Δq_j|, with [`LEVER_ARMS`] as R^max), never more
+    /// (Σ_{j>i} R_j^max |Δq_j|, with [`CollisionModel::lever_arms`] as R^max), never more
     /// than the configuration-free bound. Joints before i move a point and
     /// joint i's axis together, so they do not change that distance.
     pub fn edge_intervals(&self, a: &Config, b: &Config) -> usize {
-        let dq: [f64; 6] = std::array::from_fn(|i| (b[i] - a[i]).abs());
+        let dof = a.len();
+        let dq = Config::from_fn(dof, |i| (b[i] - a[i]).abs());
         let reach = self.model.axis_reach(a, self.resolution / 2.0);
-        let sweep: f64 = (0..6)
+        let lever = self.model.lever_arms();
+        let sweep: f64 = (0..dof)
             .map(|i| {
-                let drift: f64 = (i + 1..6).map(|j| LEVER_ARMS[j] * dq[j]).sum();
-                (reach[i] + drift).min(LEVER_ARMS[i]) * dq[i]
+                let drift: f64 = (i + 1..dof).map(|j| lever[j] * dq[j]).sum();
+                (reach[i] + drift).min(lever[i]) * dq[i]
             })
             .sum();
         (sweep / self.resolution).ceil().max(1.0) as usize
@@ -77,7 +77,7 @@ impl PlanningScene<'_> {
         if rates.max() <= 0.0 {
             return EdgeCheck { free: true, poses };
         }
-        let at = |t: f64| -> Config { std::array::from_fn(|i| a[i] + (b[i] - a[i]) * t) };
+        let at = |t: f64| -> Config { a.lerp(b, t) };
         // Most blocked edges are blocked in the middle: a plain check there
         // rejects them before the walk from the ends.
         poses += 1;
@@ -117,7 +117,7 @@ impl PlanningScene<'_> {
         let steps = self.edge_intervals(a, b);
         let at = |k: usize| -> Config {
             let t = k as f64 / steps as f64;
-            std::array::from_fn(|i| a[i] + (b[i] - a[i]) * t)
+            a.lerp(b, t)
         };
         if !self.config_valid(&at(steps)) {
             return false;
@@ -154,5 +154,9 @@ impl MotionValidator for PlanningScene<'_> {
     /// [`PlanningScene::edge_check`]: `a` must be valid (as RRT* ensures).
     fn edge_valid(&self, a: &Config, b: &Config) -> bool {
         self.edge_check(a, b).free
+    }
+
+    fn joint_limits(&self) -> Vec<(f64, f64)> {
+        self.model.robot.limits()
     }
 }

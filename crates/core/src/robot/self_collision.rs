@@ -293,7 +293,8 @@ pub fn disabled_pairs(
             hits[n] += usize::from(touch);
         }
     }
-    for (&(i, k), &h) in pairs.iter().zip(&hits) {
+    // With no samples, nothing is known of the other pairs: all stay checked.
+    for (&(i, k), &h) in pairs.iter().zip(&hits).filter(|_| samples > 0) {
         let reason = match h {
             0 => DisableReason::Never,
             h if h == samples => DisableReason::Always,

@@ -21,11 +21,11 @@ pub struct TimedPoint {
 }
 
 /// Duration and shape (u, τ) of one segment.
-fn segment_profile(a: &Config, b: &Config, vmax: &[f64; 6], amax: &[f64; 6]) -> (f64, f64, f64) {
-    let v = (0..6)
+fn segment_profile(a: &Config, b: &Config, vmax: &[f64], amax: &[f64]) -> (f64, f64, f64) {
+    let v = (0..a.len())
         .map(|i| (b[i] - a[i]).abs() / vmax[i])
         .fold(0.0, f64::max);
-    let acc = (0..6)
+    let acc = (0..a.len())
         .map(|i| (b[i] - a[i]).abs() / amax[i])
         .fold(0.0, f64::max);
     if v == 0.0 && acc == 0.0 {
@@ -53,12 +53,7 @@ fn progress(t: f64, total: f64, u: f64, tau: f64) -> f64 {
 }
 
 /// Samples the timed path every `dt` seconds (and at every waypoint).
-pub fn time_parameterize(
-    path: &[Config],
-    vmax: &[f64; 6],
-    amax: &[f64; 6],
-    dt: f64,
-) -> Vec<TimedPoint> {
+pub fn time_parameterize(path: &[Config], vmax: &[f64], amax: &[f64], dt: f64) -> Vec<TimedPoint> {
     let mut out = Vec::new();
     let Some(first) = path.first() else {
         return out;
@@ -71,7 +66,7 @@ pub fn time_parameterize(
         for k in 1..=samples {
             let t = total * k as f64 / samples as f64;
             let s = progress(t, total, u, tau);
-            let q = std::array::from_fn(|i| w[0][i] + (w[1][i] - w[0][i]) * s);
+            let q = w[0].lerp(&w[1], s);
             out.push(TimedPoint { t: start + t, q });
         }
         start += total;

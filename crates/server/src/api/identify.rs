@@ -132,18 +132,19 @@ pub async fn propose(
         push_length: length,
         contact: request.contact,
     };
+    let robot_name = request.robot.as_ref().and_then(|r| r.name.as_deref());
+    let planner = state.robots.get(robot_name, "robot.name")?;
     let arm = match &request.robot {
         None => None,
         Some(robot) => {
             let start = robot
                 .start
                 .as_deref()
-                .map(|q| super::validate::joints(q, "robot.start"))
+                .map(|q| super::validate::joints(q, "robot.start", planner.robot()))
                 .transpose()?;
             Some((super::plan::stance(robot)?, start))
         }
     };
-    let planner = state.planner.clone();
     let response = state
         .run_blocking("/v1/identify/probes", move || {
             let posterior = if observed.is_empty() {

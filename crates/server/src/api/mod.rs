@@ -19,6 +19,7 @@ pub mod observations;
 pub mod plan;
 pub mod predict;
 pub mod probe;
+pub mod robots;
 pub mod scene;
 pub mod server;
 pub mod shutdown;
@@ -71,6 +72,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/identify/probes", post(identify::propose))
         .route("/v1/trees/urdf", post(scene::tree_from_urdf))
         .route("/v1/trees/example", get(scene::example_tree))
+        .route("/v1/robots", get(robots::robots))
         .route("/v1/robot/link-poses", post(scene::link_poses))
         .route("/viewer", get(viewer::index))
         .route("/viewer/{*file}", get(viewer::asset))

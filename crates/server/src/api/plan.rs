@@ -23,7 +23,7 @@ use treemanip_core::planner::{self, Attempt, Predictor, Query, Stance, Strategy}
 use treemanip_core::robot::collision::Obstacle;
 use treemanip_core::robot::execution::ExecutionOptions;
 use treemanip_core::robot::trajectory::TimedPoint;
-use treemanip_core::robot::ur5::{self, JOINT_NAMES};
+use treemanip_core::robot::ur5;
 
 /// Obstacles a request may list.
 pub const MAX_OBSTACLES: usize = 64;
@@ -40,6 +40,10 @@ pub struct BaseRegionJson {
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotJson {
+    /// Which arm plans (`GET /v1/robots`); default the server's default
+    /// robot (the built-in `ur5` unless `--robot` was given).
+    #[serde(default)]
+    pub name: Option<String>,
     /// Arm base position (m); default (−0.5, 0, 0.1).
     #[serde(default)]
     pub base: Option<Vec<f64>>,
@@ -50,7 +54,8 @@ pub struct RobotJson {
     /// A box the planner may place the base in (instead of `base`).
     #[serde(default)]
     pub base_region: Option<BaseRegionJson>,
-    /// Start joint configuration (rad); default the paper's home pose.
+    /// Start joint configuration (rad, or m for prismatic joints), one
+    /// value per joint of the arm; default the arm's home.
     #[serde(default)]
     pub start: Option<Vec<f64>>,
 }
@@ -157,10 +162,12 @@ pub struct PlanResponse {
     pub clearance: Option<treemanip_core::planner::Clearance>,
     pub base: BasePose,
     /// The configuration the trajectory starts from.
-    pub start: [f64; 6],
+    pub start: Vec<f64>,
     /// Whether the planner chose `start` (base region, no start given).
     pub start_chosen: bool,
-    pub joint_names: [&'static str; 6],
+    /// The arm that planned.
+    pub robot: String,
+    pub joint_names: Vec<String>,
     pub trajectory: Vec<TimedPoint>,
     pub push_start_index: Option<usize>,
     /// The whole held push (approach, push, hold, release, retreat) as a
@@ -383,11 +390,14 @@ pub async fn plan(
     let mut query = Query::with_objective(tree, objective);
     query.limits = Some(load_limits);
     query.stance = stance(&request.robot)?;
+    let planner = state
+        .robots
+        .get(request.robot.name.as_deref(), "robot.name")?;
     query.start = request
         .robot
         .start
         .as_deref()
-        .map(|q| joints(q, "robot.start"))
+        .map(|q| joints(q, "robot.start", planner.robot()))
         .transpose()?;
     query.obstacles = obstacles(&request.obstacles)?;
     query.strategy = request.strategy;
@@ -411,7 +421,6 @@ pub async fn plan(
     query.observations = probes(&query.tree, &request.observations, &config, "observations")?;
     query.identify = config;
     let info = ModelInfo::of(&policy, &state);
-    let planner = state.planner.clone();
     let response = state
         .run_blocking("/v1/plan", move || {
             let plan = planner.plan(
@@ -421,14 +430,19 @@ pub async fn plan(
             )?;
             Ok(PlanResponse {
                 identification: plan.identification.as_ref().map(IdentifyResponse::from),
-                ..response(plan, info, warnings)
+                ..response(plan, planner.robot(), info, warnings)
             })
         })
         .await?;
     Ok(axum::Json(response))
 }
 
-fn response(plan: planner::Plan, model: ModelInfo, warnings: Vec<Warning>) -> PlanResponse {
+fn response(
+    plan: planner::Plan,
+    arm: &treemanip_core::robot::Arm,
+    model: ModelInfo,
+    warnings: Vec<Warning>,
+) -> PlanResponse {
     for a in &plan.attempts {
         let outcome = serde_json::to_value(a.outcome)
             .ok()
@@ -462,9 +476,10 @@ fn response(plan: planner::Plan, model: ModelInfo, warnings: Vec<Warning>) -> Pl
         predicted_error: plan.predicted_error,
         no_action_error: plan.no_action_error,
         base: plan.base,
-        start: plan.start,
+        start: plan.start.to_vec(),
         start_chosen: plan.start_chosen,
-        joint_names: JOINT_NAMES,
+        robot: arm.name().to_owned(),
+        joint_names: arm.joint_names().map(str::to_owned).collect(),
         push_start_index: chosen.as_ref().map(|p| p.push_start_index),
         push_start_point: chosen
             .as_ref()

@@ -16,7 +16,8 @@ use super::error::ApiError;
 use super::json::ApiJson;
 use super::tree_json::{TreeJson, tree_error};
 use treemanip_core::planner::base::BasePose;
-use treemanip_core::robot::ur5::{self, LinkShape};
+use treemanip_core::robot::link_geometry::LinkShape;
+use treemanip_core::robot::ur5;
 use treemanip_core::tree::sca::{self, MIN_GENERATED_NODES, ScaError, ScaParams};
 use treemanip_core::tree::urdf::{UrdfError, from_urdf_str};
 
@@ -145,6 +146,9 @@ pub struct BaseJson {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LinkPosesRequest {
+    /// Which arm (`GET /v1/robots`); default the server's default robot.
+    #[serde(default)]
+    pub robot: Option<String>,
     /// Where the arm stands (`/v1/plan`'s `base`); default the paper's mount.
     #[serde(default)]
     pub base: Option<BaseJson>,
@@ -167,6 +171,12 @@ pub enum ShapeJson {
         pose: [f64; 7],
         half_extents: [f64; 3],
     },
+    /// A cylinder along the local z axis of its centre's pose.
+    Cylinder {
+        pose: [f64; 7],
+        radius: f64,
+        half_length: f64,
+    },
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -180,7 +190,9 @@ pub struct LinkJson {
 #[derive(Debug, Clone, Serialize)]
 pub struct LinkPosesResponse {
     pub base: BasePose,
-    pub joint_names: [&'static str; 6],
+    /// The arm these are the links of.
+    pub robot: String,
+    pub joint_names: Vec<String>,
     pub links: Vec<LinkJson>,
     /// Per configuration, per link: world pose `[x, y, z, qx, qy, qz, qw]`.
     pub poses: Vec<Vec<[f64; 7]>>,
@@ -227,12 +239,13 @@ pub async fn link_poses(
         ))
         .with_details(json!({"field": "configurations", "max": MAX_CONFIGURATIONS})));
     }
+    let planner = state.robots.get(request.robot.as_deref(), "robot")?;
     let configurations = request
         .configurations
         .iter()
-        .map(|q| super::validate::joints(q, "configurations"))
+        .enumerate()
+        .map(|(k, q)| super::validate::joints(q, &format!("configurations[{k}]"), planner.robot()))
         .collect::<Result<Vec<_>, _>>()?;
-    let planner = state.planner.clone();
     state
         .run_blocking("/v1/robot/link-poses", move || {
             let robot = planner.robot().clone().with_base(base.isometry());
@@ -245,17 +258,28 @@ pub async fn link_poses(
                     shapes: shapes
                         .iter()
                         .map(|s| match s {
-                            LinkShape::Capsule { a, b, radius } => ShapeJson::Capsule {
-                                a: xyz(a),
-                                b: xyz(b),
+                            LinkShape::Capsule(c) => ShapeJson::Capsule {
+                                a: xyz(&c.a.coords),
+                                b: xyz(&c.b.coords),
+                                radius: c.radius,
+                            },
+                            LinkShape::Sphere { center, radius } => ShapeJson::Capsule {
+                                a: xyz(&center.coords),
+                                b: xyz(&center.coords),
                                 radius: *radius,
                             },
-                            LinkShape::Box {
-                                centre,
-                                half_extents,
-                            } => ShapeJson::Box {
-                                pose: pose7(centre),
+                            LinkShape::Box { pose, half_extents } => ShapeJson::Box {
+                                pose: pose7(pose),
                                 half_extents: xyz(half_extents),
+                            },
+                            LinkShape::Cylinder {
+                                pose,
+                                radius,
+                                half_length,
+                            } => ShapeJson::Cylinder {
+                                pose: pose7(pose),
+                                radius: *radius,
+                                half_length: *half_length,
                             },
                         })
                         .collect(),
@@ -267,7 +291,8 @@ pub async fn link_poses(
                 .collect();
             Ok(axum::Json(LinkPosesResponse {
                 base,
-                joint_names: ur5::JOINT_NAMES,
+                robot: robot.name().to_owned(),
+                joint_names: robot.joint_names().map(str::to_owned).collect(),
                 links,
                 poses,
             }))

@@ -65,6 +65,17 @@ pub struct ServeArgs {
     /// or of another feature layout.
     #[arg(long, env = "TREEMANIP_SKIP_BROKEN_MODELS")]
     skip_broken_models: bool,
+    /// An arm to plan for besides the built-in `ur5`:
+    /// `NAME=PATH[,tip=LINK][,base=LINK]`, PATH an imported description
+    /// (`robots/panda.toml`) or a URDF (meshes resolve through
+    /// `TREEMANIP_PACKAGE_PATH`). Repeatable; the first is the default
+    /// robot. `TREEMANIP_ROBOTS` lists them separated by `;`.
+    #[arg(long = "robot", env = "TREEMANIP_ROBOTS", value_delimiter = ';')]
+    robots: Vec<treemanip_core::robot::catalog::RobotSpec>,
+    /// Serve the robots that load and log the others, instead of refusing
+    /// to start on a broken robot file.
+    #[arg(long, env = "TREEMANIP_SKIP_BROKEN_ROBOTS")]
+    skip_broken_robots: bool,
     /// Serve `POST /debug/panic` and `/debug/panic-worker`, which panic on
     /// purpose: for testing that a bug in one request costs only that
     /// request. Never in production.
@@ -172,6 +183,25 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
         "models loaded"
     );
 
+    let packages = treemanip_core::robot::link_geometry::package_path_from_env();
+    let mut arms = Vec::new();
+    for spec in &args.robots {
+        match treemanip_core::robot::catalog::load(spec, &packages) {
+            Ok(arm) => {
+                tracing::info!(robot = %spec.name, dof = arm.dof(), closed_form_ik = arm.has_closed_form_ik(), "robot loaded");
+                arms.push(arm);
+            }
+            Err(e) if args.skip_broken_robots => {
+                tracing::error!(robot = %spec.name, error = %e, "robot not loaded; serving without it");
+            }
+            Err(e) => anyhow::bail!(
+                "loading robot `{}`: {e} (--skip-broken-robots serves the others)",
+                spec.name
+            ),
+        }
+    }
+    let robots = api::robots::RobotPlanners::new(arms);
+
     let listener = TcpListener::bind(args.bind)
         .await
         .map_err(|e| anyhow::anyhow!("cannot listen on {}: {e}", args.bind))?;
@@ -192,7 +222,9 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
         fault_injection: args.fault_injection,
     };
     let grace = limits.request_timeout + std::time::Duration::from_secs(5);
-    let state = AppState::new(limits).with_models(std::sync::Arc::new(models));
+    let state = AppState::new(limits)
+        .with_models(std::sync::Arc::new(models))
+        .with_robots(robots);
     let drain = state.drain.clone();
     let app = api::router(state);
     axum::serve(listener, app)

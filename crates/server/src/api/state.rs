@@ -81,8 +81,8 @@ pub struct AppState {
     pub(crate) metrics: metrics_exporter_prometheus::PrometheusHandle,
     /// Graceful shutdown's state ([`shutdown`]).
     pub drain: Arc<shutdown::Drain>,
-    /// The arm's collision geometry, built once.
-    pub planner: Arc<treemanip_core::planner::Planner>,
+    /// A planner per arm served, each built once.
+    pub robots: Arc<super::robots::RobotPlanners>,
 }
 
 impl AppState {
@@ -93,8 +93,13 @@ impl AppState {
             models: None,
             metrics: metrics::recorder(),
             drain: Arc::default(),
-            planner: Arc::default(),
+            robots: Arc::default(),
         }
+    }
+
+    pub fn with_robots(mut self, robots: super::robots::RobotPlanners) -> Self {
+        self.robots = Arc::new(robots);
+        self
     }
 
     pub fn with_models(mut self, models: Arc<ModelSet>) -> Self {

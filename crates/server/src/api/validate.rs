@@ -107,27 +107,36 @@ pub fn within_turn(angle: f64) -> bool {
     angle.is_finite() && angle.abs() <= std::f64::consts::TAU
 }
 
-/// A joint configuration (rad) given in `field`.
-pub fn joints(values: &[f64], field: &str) -> Result<[f64; 6], ApiError> {
-    let q = <[f64; 6]>::try_from(values).map_err(|_| {
-        ApiError::invalid_field(
-            field,
-            format!(
-                "`{field}` must have 6 joint angles, it has {}",
-                values.len()
-            ),
-        )
-    })?;
-    if !q
-        .iter()
-        .all(|v| v.is_finite() && v.abs() <= 2.0 * std::f64::consts::TAU)
-    {
+/// A joint configuration of `arm` given in `field`: one finite value per
+/// joint (rad, or m for a prismatic joint), each within its joint's limits.
+pub fn joints(
+    values: &[f64],
+    field: &str,
+    arm: &treemanip_core::robot::Arm,
+) -> Result<treemanip_core::robot::joint_vector::JointVector, ApiError> {
+    if values.len() != arm.dof() {
         return Err(ApiError::invalid_field(
             field,
-            format!("`{field}` must be finite angles within ±4π rad"),
+            format!(
+                "`{field}` must have {} joint values for `{}`, it has {}",
+                arm.dof(),
+                arm.name(),
+                values.len()
+            ),
         ));
     }
-    Ok(q)
+    for (k, (v, j)) in values.iter().zip(arm.joints()).enumerate() {
+        if !(v.is_finite() && j.lower <= *v && *v <= j.upper) {
+            return Err(ApiError::invalid_field(
+                field,
+                format!(
+                    "`{field}[{k}]` = {v} is outside joint `{}`'s limits [{}, {}]",
+                    j.name, j.lower, j.upper
+                ),
+            ));
+        }
+    }
+    Ok(treemanip_core::robot::joint_vector::JointVector::from_slice(values))
 }
 
 /// A point within [`MAX_DISTANCE`] of the root.

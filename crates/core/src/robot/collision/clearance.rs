@@ -19,24 +19,21 @@ use parry3d_f64::query::details::closest_points_segment_segment_with_locations_n
 
 use super::segment_box::segment_box_distance_squared;
 use super::{
-    Aabb, Allowed, CollisionModel, GROUND_Z, ShapeSlot, TreeObstacles, WorldShape, WorldShapes,
+    Aabb, Allowed, CollisionModel, GROUND_Z, JointVector, ShapeSlot, TreeObstacles, WorldShape,
+    WorldShapes,
 };
-use crate::robot::ur5::{DH_A, DH_D, FINGER_LENGTH, LinkShape, TOOL_OFFSET};
+use crate::robot::arm::JointAxes;
+use crate::robot::link_geometry::LinkShape;
 
-/// Largest capsule radius plus the gripper's half width, added to the
-/// kinematic reach to bound every collision shape (m).
-const SHAPE_SLACK: f64 = 0.1;
-
-/// R_i: an upper bound on the distance from joint i's axis to any point of
-/// the robot's collision shapes (m) in any configuration, from the chain of
-/// DH lengths beyond it.
-pub const LEVER_ARMS: [f64; 6] = {
-    let tool = TOOL_OFFSET + FINGER_LENGTH + SHAPE_SLACK;
-    let wrist = DH_D[4] + DH_D[5] + tool;
-    let forearm = -DH_A[2] + DH_D[3] + wrist;
-    let arm = -DH_A[1] + forearm;
-    [arm, arm, forearm, wrist, DH_D[5] + tool, tool]
-};
+/// Distance of `p` from a joint's axis (a point on it, its direction).
+pub(super) fn from_axis(
+    axis: &(Point3<f64>, nalgebra::Vector3<f64>, bool),
+    p: &Point3<f64>,
+) -> f64 {
+    let (o, d, _) = axis;
+    let v = p - o;
+    (v - d * v.dot(d)).norm()
+}
 
 /// Points that bound a shape at `pose`, and how far the shape reaches
 /// beyond them (grown by `margin`).
@@ -46,16 +43,31 @@ pub(super) fn bounding_points(
     margin: f64,
 ) -> ([Point3<f64>; 2], f64) {
     match &slot.shape {
-        LinkShape::Capsule { a, b, radius } => (
-            [pose * Point3::from(*a), pose * Point3::from(*b)],
-            radius + margin,
-        ),
+        LinkShape::Capsule(c) => ([pose * c.a, pose * c.b], c.radius + margin),
+        LinkShape::Sphere { center, radius } => {
+            let c = pose * center;
+            ([c, c], radius + margin)
+        }
         LinkShape::Box {
-            centre,
+            pose: at,
             half_extents,
         } => {
-            let c = pose * centre * Point3::origin();
+            let c = pose * at * Point3::origin();
             ([c, c], half_extents.norm() + margin)
+        }
+        LinkShape::Cylinder {
+            pose: at,
+            radius,
+            half_length,
+        } => {
+            let world = pose * at;
+            (
+                [
+                    world * Point3::new(0.0, 0.0, -half_length),
+                    world * Point3::new(0.0, 0.0, *half_length),
+                ],
+                radius + margin,
+            )
         }
     }
 }
@@ -65,7 +77,7 @@ pub(super) fn bounding_points(
 pub struct SweepRates {
     /// Per shape and joint: how fast that joint's rotation moves the
     /// shape's points (m per unit t); 0 for joints that do not move it.
-    by_joint: Vec<[f64; 6]>,
+    by_joint: Vec<JointVector>,
     /// Per shape: the sum over joints, its speed in the world.
     rates: Vec<f64>,
     /// Per self-collision pair of the model: how fast the two approach.
@@ -86,7 +98,7 @@ impl SweepRates {
     /// move exactly one of them count.
     fn relative(&self, model: &CollisionModel, i: usize, j: usize) -> f64 {
         let (mi, mj) = (&model.shapes[i].moved_by, &model.shapes[j].moved_by);
-        (0..6)
+        (0..mi.len().min(self.by_joint[i].len()))
             .map(|k| match (mi[k], mj[k]) {
                 (true, false) => self.by_joint[i][k],
                 (false, true) => self.by_joint[j][k],
@@ -100,35 +112,37 @@ impl CollisionModel {
     /// Sweep rates of every shape along the edge `a` → `b`: for each joint
     /// i moving the shape, its reach from i's axis at `a` plus how far the
     /// joints beyond i can carry it away from that axis during the edge
-    /// (never more than [`LEVER_ARMS`]), times |b_i − a_i|. Joints before i
-    /// move the point and the axis together, so they do not change that
+    /// (never more than the arm's lever arm for i), times |b_i − a_i|; a
+    /// prismatic joint moves it exactly |b_i − a_i|. Joints before i move
+    /// the point and the axis together, so they do not change that
     /// distance.
-    pub fn sweep_rates(&self, a: &[f64; 6], b: &[f64; 6]) -> SweepRates {
+    pub fn sweep_rates(&self, a: &[f64], b: &[f64]) -> SweepRates {
         let poses = self.robot.link_poses(a);
-        let axes = self.robot.joint_axes(&poses);
-        let dq: [f64; 6] = std::array::from_fn(|i| (b[i] - a[i]).abs());
-        let by_joint: Vec<[f64; 6]> = self
+        let axes: JointAxes = self.robot.joint_axes(&poses);
+        let dof = self.robot.dof();
+        let dq = JointVector::from_fn(dof, |i| (b[i] - a[i]).abs());
+        let lever = &self.lever_arms;
+        let by_joint: Vec<JointVector> = self
             .shapes
             .iter()
             .map(|slot| {
                 let (points, pad) = bounding_points(slot, &poses[slot.link], 0.0);
-                std::array::from_fn(|i| {
+                JointVector::from_fn(dof, |i| {
                     if !slot.moved_by[i] || dq[i] == 0.0 {
                         return 0.0;
                     }
-                    let (o, d) = &axes[i];
+                    if axes[i].2 {
+                        return dq[i];
+                    }
                     let reach = points
                         .iter()
-                        .map(|p| {
-                            let v = p - o;
-                            (v - d * v.dot(d)).norm() + pad
-                        })
+                        .map(|p| from_axis(&axes[i], p) + pad)
                         .fold(0.0, f64::max);
-                    let drift: f64 = (i + 1..6)
+                    let drift: f64 = (i + 1..dof)
                         .filter(|&j| slot.moved_by[j])
-                        .map(|j| LEVER_ARMS[j] * dq[j])
+                        .map(|j| lever[j] * dq[j])
                         .sum();
-                    (reach + drift).min(LEVER_ARMS[i]) * dq[i]
+                    (reach + drift).min(lever[i]) * dq[i]
                 })
             })
             .collect();
@@ -157,7 +171,7 @@ impl CollisionModel {
     /// out nearly every other pair without a distance).
     pub fn free_span(
         &self,
-        q: &[f64; 6],
+        q: &[f64],
         tree: &TreeObstacles,
         allowed: &Allowed,
         rates: &SweepRates,
@@ -344,8 +358,9 @@ fn distance(a: &WorldShape, b: &WorldShape) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::robot::arm::Arm;
     use crate::robot::collision::Obstacle;
-    use crate::robot::ur5::{JOINT_LIMITS, Ur5};
+    use crate::robot::ur5::JOINT_LIMITS;
     use crate::tree::{ScaParams, generate};
     use nalgebra::Vector3;
     use rand::{RngExt, SeedableRng};
@@ -354,7 +369,7 @@ mod tests {
     /// rate, the ground, the horizon.
     fn brute_force_span(
         model: &CollisionModel,
-        q: &[f64; 6],
+        q: &[f64],
         tree: &TreeObstacles,
         allowed: &Allowed,
         rates: &SweepRates,
@@ -399,7 +414,7 @@ mod tests {
     /// unpruned minimum over every pair (or rejects exactly when it does).
     #[test]
     fn pruned_spans_equal_the_unpruned_minimum() {
-        let model = CollisionModel::new(Ur5::default());
+        let model = CollisionModel::new(Arm::default());
         let tree = generate(20, 3, &ScaParams::default()).unwrap();
         let obstacles = TreeObstacles::new(&tree).with_obstacles(&[
             Obstacle::Capsule {
@@ -419,14 +434,14 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         let (mut spans, mut rejected) = (0, 0);
         for _ in 0..400 {
-            let a: [f64; 6] = std::array::from_fn(|i| {
+            let a = JointVector::from_fn(6, |i| {
                 rng.random_range(JOINT_LIMITS[i].0.max(-3.0)..JOINT_LIMITS[i].1.min(3.0))
             });
-            let b: [f64; 6] = std::array::from_fn(|i| a[i] + rng.random_range(-0.6..0.6));
+            let b = JointVector::from_fn(6, |i| a[i] + rng.random_range(-0.6..0.6));
             let rates = model.sweep_rates(&a, &b);
             for step in 0..6 {
                 let t = step as f64 / 6.0;
-                let q: [f64; 6] = std::array::from_fn(|i| a[i] + (b[i] - a[i]) * t);
+                let q = a.lerp(&b, t);
                 let horizon = 1.0 - t;
                 let fast = model.free_span(&q, &obstacles, &allowed, &rates, horizon, 0.005);
                 let slow =

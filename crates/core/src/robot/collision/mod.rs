@@ -12,37 +12,30 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d_f64::math::{Pose, Rot3, Vec3};
 use parry3d_f64::query::details::closest_points_segment_segment_with_locations_nD;
 use parry3d_f64::query::intersection_test;
-use parry3d_f64::shape::{Capsule, Cuboid, Shape};
+use parry3d_f64::shape::{Capsule, Cuboid, Cylinder, Shape};
 use serde::Serialize;
 
-use super::ur5::{LinkShape, Ur5};
+use super::arm::Arm;
+use super::joint_vector::{JointVector, MAX_DOF};
+use super::link_geometry::LinkShape;
 use crate::tree::Tree;
 
 mod clearance;
+mod placement;
 mod segment_box;
-pub use clearance::{LEVER_ARMS, SweepRates};
+pub use clearance::SweepRates;
+use placement::world_shape;
+
+/// Added to each lever arm ([`Arm::lever_arms`]): covers the margin that
+/// shapes are grown by in checks (half the edge resolution) (m).
+const LEVER_ARM_SLACK: f64 = 0.02;
+/// Random configurations over which a pair of the added ⊔ gripper and an
+/// arm link must always touch to be left unchecked (as MoveIt's setup
+/// assistant leaves "always in collision" pairs).
+const GRIPPER_PAIR_SAMPLES: usize = 200;
 
 /// Height of the ground plane (m).
 pub const GROUND_Z: f64 = 0.0;
-
-/// Link pairs not checked for self-collision besides parent/child pairs.
-/// Each is two links apart across a short link and a joint housing, so the
-/// real arm cannot bring them into contact, while our (conservative)
-/// capsules already overlap in the valid zero configuration:
-/// base–upper arm (around the shoulder housing), forearm–wrist 2 and
-/// wrist 1–wrist 3 (around the wrist housings). The gripper sits in front of
-/// the flange face and wrist 2 behind it, but the hemispherical cap of
-/// wrist 2's capsule reaches past the face into the standoff and palm. Sampling showed
-/// these overlaps at the valid zero and home configurations.
-pub const DISABLED_PAIRS: [(&str, &str); 7] = [
-    ("base_link_inertia", "upper_arm_link"),
-    ("forearm_link", "wrist_2_link"),
-    ("wrist_1_link", "wrist_3_link"),
-    ("wrist_2_link", "gripper_mount"),
-    ("wrist_2_link", "gripper_palm"),
-    ("wrist_2_link", "gripper_finger_left"),
-    ("wrist_2_link", "gripper_finger_right"),
-];
 
 /// What a configuration collides with.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
@@ -174,6 +167,8 @@ enum WorldShape {
     /// Endpoints are in world coordinates; the pose is the identity.
     Capsule(Capsule),
     Box(Cuboid, Pose),
+    /// parry's cylinder runs along its local y axis.
+    Cylinder(Cylinder, Pose),
 }
 
 impl WorldShape {
@@ -181,6 +176,7 @@ impl WorldShape {
         match self {
             WorldShape::Capsule(c) => (Pose::IDENTITY, c),
             WorldShape::Box(b, p) => (*p, b),
+            WorldShape::Cylinder(c, p) => (*p, c),
         }
     }
 }
@@ -284,44 +280,50 @@ pub struct Allowed {
 struct ShapeSlot {
     link: usize,
     shape: LinkShape,
+    /// Rigid with the tip (tool, hand, flange): may touch the held branch.
     gripper: bool,
+    /// Fixed to the base: not checked against the ground.
     base: bool,
     /// Which joints move this shape.
-    moved_by: [bool; 6],
+    moved_by: [bool; MAX_DOF],
 }
 
 /// The arm's collision geometry and which link pairs to test for
 /// self-collision.
 #[derive(Debug, Clone)]
 pub struct CollisionModel {
-    pub robot: Ur5,
+    pub robot: Arm,
     shapes: Vec<ShapeSlot>,
     /// Pairs of indices into `shapes`.
     self_pairs: Vec<(usize, usize)>,
     names: Vec<String>,
+    /// [`Arm::lever_arms`], with [`LEVER_ARM_SLACK`].
+    lever_arms: JointVector,
 }
 
 impl CollisionModel {
-    /// The arm with the default [`DISABLED_PAIRS`].
-    pub fn new(robot: Ur5) -> Self {
-        Self::with_disabled_pairs(robot, &DISABLED_PAIRS)
+    /// The arm, skipping the self-collision pairs its description disables
+    /// and any pair of the added ⊔ gripper with a link it always touches.
+    pub fn new(robot: Arm) -> Self {
+        let disabled = robot.disabled_pairs().to_vec();
+        let mut model = Self::with_disabled_pairs(robot, &disabled);
+        model.drop_gripper_pairs_always_touching();
+        model
     }
 
     /// The arm, skipping self-collision checks between the named link pairs
     /// (besides parent/child pairs, which are never checked).
-    pub fn with_disabled_pairs(robot: Ur5, disabled_pairs: &[(&str, &str)]) -> Self {
+    pub fn with_disabled_pairs(robot: Arm, disabled_pairs: &[(String, String)]) -> Self {
         let names: Vec<String> = robot.link_names().map(str::to_owned).collect();
         let mut shapes = Vec::new();
-        for (link, (name, link_shapes)) in robot.link_shapes().enumerate() {
+        for (link, (_, link_shapes)) in robot.link_shapes().enumerate() {
             for shape in link_shapes {
                 shapes.push(ShapeSlot {
                     link,
                     shape: shape.clone(),
-                    // The flange carries the gripper; its capsule bulges
-                    // past the palm face, so it shares the gripper's allowance.
-                    gripper: name.starts_with("gripper_") || name == "wrist_3_link",
-                    base: name == "base_link_inertia",
-                    moved_by: std::array::from_fn(|i| robot.moved_by(link, i)),
+                    gripper: robot.carried_by_tip(link),
+                    base: robot.fixed_to_base(link),
+                    moved_by: std::array::from_fn(|i| i < robot.dof() && robot.moved_by(link, i)),
                 });
             }
         }
@@ -330,7 +332,7 @@ impl CollisionModel {
         let disabled = |a: &str, b: &str| {
             disabled_pairs
                 .iter()
-                .any(|(x, y)| (*x == a && *y == b) || (*x == b && *y == a))
+                .any(|(x, y)| (x == a && y == b) || (x == b && y == a))
         };
         let mut self_pairs = Vec::new();
         for i in 0..shapes.len() {
@@ -339,57 +341,103 @@ impl CollisionModel {
                 if la == lb || adjacent(la, lb) || disabled(&names[la], &names[lb]) {
                     continue;
                 }
-                // The gripper and the flange are one rigid body.
-                if shapes[i].gripper && shapes[j].gripper {
+                // The tool, the tip and what is welded to it are one rigid
+                // body; so are the base's links.
+                if (shapes[i].gripper && shapes[j].gripper) || (shapes[i].base && shapes[j].base) {
                     continue;
                 }
                 self_pairs.push((i, j));
             }
         }
+        let lever_arms = robot.lever_arms(LEVER_ARM_SLACK);
         Self {
             robot,
             shapes,
             self_pairs,
             names,
+            lever_arms,
         }
     }
 
-    /// World-frame capsules (endpoints, radius) of every capsule-shaped link
-    /// part at `q`, with the link name: for tests and drawings.
-    pub fn capsules_at(&self, q: &[f64; 6]) -> Vec<(&str, Point3<f64>, Point3<f64>, f64)> {
+    /// Drops the self-collision pairs of the added ⊔ gripper with a link
+    /// that it touches in every one of [`GRIPPER_PAIR_SAMPLES`] random
+    /// configurations (a hand it is bolted past, say): the description's
+    /// sampling could not know of the gripper.
+    fn drop_gripper_pairs_always_touching(&mut self) {
+        let Some(gripper) = self.robot.link_index(super::arm::GRIPPER_LINK) else {
+            return;
+        };
+        let candidates: Vec<usize> = (0..self.self_pairs.len())
+            .filter(|&k| {
+                let (i, j) = self.self_pairs[k];
+                self.shapes[i].link == gripper || self.shapes[j].link == gripper
+            })
+            .collect();
+        if candidates.is_empty() {
+            return;
+        }
+        let mut always = vec![true; self.self_pairs.len()];
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(7);
+        for _ in 0..GRIPPER_PAIR_SAMPLES {
+            let q = super::ik_numeric::random_configuration(self.robot.chain(), &mut rng);
+            let world = self.world_shapes(&q, 0.0);
+            for &k in &candidates {
+                let (i, j) = self.self_pairs[k];
+                always[k] &= intersects(&world[i].0, &world[j].0);
+            }
+        }
+        let mut k = 0;
+        self.self_pairs.retain(|_| {
+            let keep = !(candidates.contains(&k) && always[k]);
+            k += 1;
+            keep
+        });
+    }
+
+    /// [`Arm::lever_arms`] as the edge checks use them.
+    pub fn lever_arms(&self) -> &JointVector {
+        &self.lever_arms
+    }
+
+    /// World-frame capsules (endpoints, radius) of every capsule- or
+    /// sphere-shaped link part at `q`, with the link name: for tests and
+    /// drawings.
+    pub fn capsules_at(&self, q: &[f64]) -> Vec<(&str, Point3<f64>, Point3<f64>, f64)> {
         let poses = self.robot.link_poses(q);
         self.shapes
             .iter()
-            .filter_map(|slot| match &slot.shape {
-                LinkShape::Capsule { a, b, radius } => Some((
-                    self.names[slot.link].as_str(),
-                    poses[slot.link] * Point3::from(*a),
-                    poses[slot.link] * Point3::from(*b),
-                    *radius,
-                )),
-                LinkShape::Box { .. } => None,
+            .filter_map(|slot| {
+                let (a, b, r) = match &slot.shape {
+                    LinkShape::Capsule(c) => (c.a, c.b, c.radius),
+                    LinkShape::Sphere { center, radius } => (*center, *center, *radius),
+                    _ => return None,
+                };
+                let p = poses[slot.link];
+                Some((self.names[slot.link].as_str(), p * a, p * b, r))
             })
             .collect()
     }
 
     /// R_i(q) for each joint i: the largest distance from joint i's axis
-    /// of any point of a shape it moves, each shape grown by `margin`. A
-    /// rotation Δq_i moves no such point farther than R_i |Δq_i|; the
+    /// of any point of a shape it moves, each shape grown by `margin` (1
+    /// for a prismatic joint, which moves every point as fast as itself).
+    /// A rotation Δq_i moves no such point farther than R_i |Δq_i|; the
     /// planning scene spaces its edge checks by it.
-    pub fn axis_reach(&self, q: &[f64; 6], margin: f64) -> [f64; 6] {
+    pub fn axis_reach(&self, q: &[f64], margin: f64) -> JointVector {
         let poses = self.robot.link_poses(q);
         let axes = self.robot.joint_axes(&poses);
-        let from_axis = |i: usize, p: &Point3<f64>| {
-            let (o, d) = &axes[i];
-            let v = p - o;
-            (v - d * v.dot(d)).norm()
-        };
-        let mut reach = [0.0f64; 6];
+        let dof = self.robot.dof();
+        let mut reach = JointVector::zeros(dof);
+        for (i, (_, _, prismatic)) in axes.iter().enumerate() {
+            if *prismatic {
+                reach[i] = 1.0;
+            }
+        }
         for slot in &self.shapes {
             let (points, pad) = clearance::bounding_points(slot, &poses[slot.link], margin);
-            for i in (0..6).filter(|&i| slot.moved_by[i]) {
+            for i in (0..dof).filter(|&i| slot.moved_by[i] && !axes[i].2) {
                 for p in &points {
-                    reach[i] = reach[i].max(from_axis(i, p) + pad);
+                    reach[i] = reach[i].max(clearance::from_axis(&axes[i], p) + pad);
                 }
             }
         }
@@ -409,46 +457,16 @@ impl CollisionModel {
             .collect()
     }
 
-    fn world_shapes(&self, q: &[f64; 6], margin: f64) -> WorldShapes {
+    fn world_shapes(&self, q: &[f64], margin: f64) -> WorldShapes {
         let poses = self.robot.link_poses(q);
         self.shapes
             .iter()
-            .map(|slot| {
-                let p = poses[slot.link];
-                match &slot.shape {
-                    LinkShape::Capsule { a, b, radius } => {
-                        let (wa, wb) =
-                            ((p * Point3::from(*a)).coords, (p * Point3::from(*b)).coords);
-                        let r = radius + margin;
-                        (
-                            WorldShape::Capsule(Capsule::new(vec3(&wa), vec3(&wb), r)),
-                            Aabb::of_capsule(&wa, &wb, r),
-                        )
-                    }
-                    LinkShape::Box {
-                        centre,
-                        half_extents,
-                    } => {
-                        let half_extents = &half_extents.add_scalar(margin);
-                        let world = p * centre;
-                        let rot = world.rotation.to_rotation_matrix();
-                        let extent = rot.matrix().abs() * half_extents;
-                        let c = world.translation.vector;
-                        (
-                            WorldShape::Box(Cuboid::new(vec3(half_extents)), pose(&world)),
-                            Aabb {
-                                min: c - extent,
-                                max: c + extent,
-                            },
-                        )
-                    }
-                }
-            })
+            .map(|slot| world_shape(&slot.shape, &poses[slot.link], margin))
             .collect()
     }
 
     /// The first collision of configuration `q`, or `None` when it is free.
-    pub fn check(&self, q: &[f64; 6], tree: &TreeObstacles, allowed: &Allowed) -> Option<Hit> {
+    pub fn check(&self, q: &[f64], tree: &TreeObstacles, allowed: &Allowed) -> Option<Hit> {
         self.check_with_margin(q, tree, allowed, 0.0)
     }
 
@@ -457,7 +475,7 @@ impl CollisionModel {
     /// moves more than δ/2, which makes discrete edge checks conservative.
     pub fn check_with_margin(
         &self,
-        q: &[f64; 6],
+        q: &[f64],
         tree: &TreeObstacles,
         allowed: &Allowed,
         margin: f64,

@@ -226,7 +226,7 @@ pub(super) fn rrt_star(
         if !validator.config_valid(&new_q) || !tree.verify_path(nearest) {
             continue;
         }
-        let radius = neighbour_radius(options, tree.nodes.len());
+        let radius = neighbour_radius(options, tree.nodes.len(), start.len());
         let near: Vec<(usize, f64)> = (0..tree.nodes.len())
             .filter(|&i| tree.nodes[i].alive)
             .map(|i| (i, distance(&tree.nodes[i].q, &new_q)))

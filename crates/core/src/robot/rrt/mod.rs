@@ -32,17 +32,18 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use super::ur5::JOINT_LIMITS;
-
 mod lazy;
 
-pub type Config = [f64; 6];
+/// A joint configuration (one value per joint of the arm planned for).
+pub type Config = super::joint_vector::JointVector;
 
 /// Decides which configurations and straight joint-space edges are free.
 pub trait MotionValidator {
     fn config_valid(&self, q: &Config) -> bool;
     /// The straight edge from `a` (known valid) to `b` is free.
     fn edge_valid(&self, a: &Config, b: &Config) -> bool;
+    /// Each joint's position limits, which bound the sampling.
+    fn joint_limits(&self) -> Vec<(f64, f64)>;
 }
 
 #[derive(Debug, Clone)]
@@ -126,8 +127,7 @@ fn steer(from: &Config, to: &Config, max_step: f64) -> Config {
     if d <= max_step {
         return *to;
     }
-    let f = max_step / d;
-    std::array::from_fn(|i| from[i] + (to[i] - from[i]) * f)
+    from.lerp(to, max_step / d)
 }
 
 /// The valid goals (with their index among those given), the random
@@ -135,7 +135,7 @@ fn steer(from: &Config, to: &Config, max_step: f64) -> Config {
 struct Sampler {
     goals: Vec<(usize, Config)>,
     rng: ChaCha8Rng,
-    bounds: [(f64, f64); 6],
+    bounds: Vec<(f64, f64)>,
 }
 
 impl Sampler {
@@ -157,15 +157,18 @@ impl Sampler {
         if goals.is_empty() {
             return Err(RrtError::NoValidGoal);
         }
-        let bounds: [(f64, f64); 6] = std::array::from_fn(|i| {
-            let values = goals
-                .iter()
-                .map(|g| g.1[i])
-                .chain(std::iter::once(start[i]));
-            let lo = values.clone().fold(f64::INFINITY, f64::min) - options.sampling_margin;
-            let hi = values.fold(f64::NEG_INFINITY, f64::max) + options.sampling_margin;
-            (lo.max(JOINT_LIMITS[i].0), hi.min(JOINT_LIMITS[i].1))
-        });
+        let limits = validator.joint_limits();
+        let bounds: Vec<(f64, f64)> = (0..start.len())
+            .map(|i| {
+                let values = goals
+                    .iter()
+                    .map(|g| g.1[i])
+                    .chain(std::iter::once(start[i]));
+                let lo = values.clone().fold(f64::INFINITY, f64::min) - options.sampling_margin;
+                let hi = values.fold(f64::NEG_INFINITY, f64::max) + options.sampling_margin;
+                (lo.max(limits[i].0), hi.min(limits[i].1))
+            })
+            .collect();
         Ok(Self {
             goals,
             rng: ChaCha8Rng::seed_from_u64(options.seed),
@@ -178,13 +181,15 @@ impl Sampler {
 fn sample(
     rng: &mut ChaCha8Rng,
     goals: &[(usize, Config)],
-    bounds: &[(f64, f64); 6],
+    bounds: &[(f64, f64)],
     goal_bias: f64,
 ) -> Config {
     if rng.random::<f64>() < goal_bias {
         goals[rng.random_range(0..goals.len())].1
     } else {
-        std::array::from_fn(|i| rng.random_range(bounds[i].0..=bounds[i].1))
+        Config::from_fn(bounds.len(), |i| {
+            rng.random_range(bounds[i].0..=bounds[i].1)
+        })
     }
 }
 
@@ -218,9 +223,10 @@ fn cost_lower_bound(start: &Config, goals: &[(usize, Config)]) -> f64 {
 }
 
 /// The neighbour radius of RRT* with `n` nodes, never above the step.
-fn neighbour_radius(options: &RrtStarOptions, n: usize) -> f64 {
+/// (The exponent is 1/dimension: 1/6 for the UR5, 1/7 for a 7-joint arm.)
+fn neighbour_radius(options: &RrtStarOptions, n: usize, dof: usize) -> f64 {
     let n = n as f64 + 1.0;
-    (options.gamma * (n.ln() / n).powf(1.0 / 6.0)).min(options.max_step)
+    (options.gamma * (n.ln() / n).powf(1.0 / dof as f64)).min(options.max_step)
 }
 
 struct Node {
@@ -296,7 +302,7 @@ pub fn rrt_star(
         if !validator.config_valid(&new_q) {
             continue;
         }
-        let radius = neighbour_radius(options, nodes.len());
+        let radius = neighbour_radius(options, nodes.len(), start.len());
         let mut near: Vec<(usize, f64)> = (0..nodes.len())
             .map(|i| (i, distance(&nodes[i].q, &new_q)))
             .filter(|&(i, d)| d <= radius || i == nearest)

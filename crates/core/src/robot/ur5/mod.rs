@@ -16,12 +16,14 @@
 //! tool x runs along the slot (the held branch lies along it), tool y across
 //! the slot.
 
-use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI};
 
+use super::arm::Arm;
+use super::description::{PerJoint, PoseSpec, RobotConfig, RobotDescription, ToolSpec};
 pub use super::dh::{DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
-use nalgebra::{Isometry3, Point3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
-use urdf_rs::{Collision, Geometry, Joint, Link};
+use super::import::describe;
+use super::joint_vector::JointVector;
+use nalgebra::Isometry3;
 
 pub const JOINT_NAMES: [&str; 6] = [
     "shoulder_pan_joint",
@@ -50,14 +52,14 @@ pub const MAX_VELOCITY: [f64; 6] = [PI; 6];
 pub const MAX_ACCELERATION: [f64; 6] = [3.0; 6];
 
 /// The paper's home configuration (rad).
-pub const HOME: [f64; 6] = [
+pub const HOME: JointVector = JointVector::new([
     FRAC_PI_2,
     -2.0 * PI / 3.0,
     4.0 * PI / 5.0,
     -PI / 7.0,
     FRAC_PI_2,
     0.0,
-];
+]);
 
 /// The paper's mount: `base_link` at (−0.5, 0, 0.1) m from the tree root,
 /// identity orientation.
@@ -218,252 +220,66 @@ pub const GRIPPER_BOXES: [BoxSpec; 4] = [
 mod urdf;
 pub use urdf::{URDF, dh_joint_origin, urdf_string};
 
-/// World poses of the links, in the model's link order: on the stack for
-/// arms of up to 16 links (the UR5 with its gripper has 13), since the
-/// collision checker computes them for every pose it checks.
-pub type LinkPoses = smallvec::SmallVec<[Isometry3<f64>; 16]>;
+/// Link pairs not checked for self-collision besides parent/child pairs.
+/// Each is two links apart across a short link and a joint housing, so the
+/// real arm cannot bring them into contact, while our (conservative)
+/// capsules already overlap in the valid zero configuration:
+/// base–upper arm (around the shoulder housing), forearm–wrist 2 and
+/// wrist 1–wrist 3 (around the wrist housings). The gripper sits in front of
+/// the flange face and wrist 2 behind it, but the hemispherical cap of
+/// wrist 2's capsule reaches past the face into the standoff and palm. Sampling showed
+/// these overlaps at the valid zero and home configurations.
+pub const DISABLED_PAIRS: [(&str, &str); 7] = [
+    ("base_link_inertia", "upper_arm_link"),
+    ("forearm_link", "wrist_2_link"),
+    ("wrist_1_link", "wrist_3_link"),
+    ("wrist_2_link", "gripper_mount"),
+    ("wrist_2_link", "gripper_palm"),
+    ("wrist_2_link", "gripper_finger_left"),
+    ("wrist_2_link", "gripper_finger_right"),
+];
 
-/// A collision shape attached to a link, in the link's frame.
-#[derive(Debug, Clone, PartialEq)]
-pub enum LinkShape {
-    Capsule {
-        a: Vector3<f64>,
-        b: Vector3<f64>,
-        radius: f64,
-    },
-    Box {
-        centre: Isometry3<f64>,
-        half_extents: Vector3<f64>,
-    },
+/// The built-in UR5's description: the embedded URDF (arm capsules and the
+/// gripper's boxes), chain `base_link` → `wrist_3_link`, the tool frame at
+/// the palm's face, [`MAX_ACCELERATION`], [`HOME`] and [`DISABLED_PAIRS`].
+pub fn description() -> RobotDescription {
+    let robot = urdf_rs::read_from_string(URDF).expect("the embedded URDF parses");
+    let config = RobotConfig {
+        name: "ur5".to_owned(),
+        urdf: "assets/ur5_gripper.urdf".into(),
+        base_link: Some("base_link".to_owned()),
+        tip_link: Some("wrist_3_link".to_owned()),
+        acceleration: Some(PerJoint::Each(MAX_ACCELERATION.to_vec())),
+        jerk: None,
+        home: Some(HOME.to_vec()),
+        disabled_pairs: DISABLED_PAIRS
+            .iter()
+            .map(|(a, b)| [(*a).to_owned(), (*b).to_owned()])
+            .collect(),
+        licence: "treemanip's own (written from Universal Robots' DH parameters)".to_owned(),
+        tool: ToolSpec {
+            mount: PoseSpec::identity(),
+            gripper: false,
+        },
+    };
+    describe(config, &robot, None, &[], "built in", 0).expect("the embedded UR5 is valid")
 }
 
-#[derive(Debug, Clone)]
-struct ChainLink {
-    name: String,
-    parent: Option<usize>,
-    /// Pose of the joint frame in the parent link.
-    origin: Isometry3<f64>,
-    /// Index into the configuration and joint axis, for revolute joints.
-    joint: Option<(usize, Unit<Vector3<f64>>)>,
-    shapes: Vec<LinkShape>,
+impl Arm {
+    /// The built-in UR5 with the ⊔ gripper, at `base`.
+    pub fn ur5(base: Isometry3<f64>) -> Self {
+        static ARM: std::sync::OnceLock<Arm> = std::sync::OnceLock::new();
+        ARM.get_or_init(|| {
+            Arm::from_description(&description()).expect("the embedded UR5 is valid")
+        })
+        .clone()
+        .with_base(base)
+    }
 }
 
-#[derive(Debug, thiserror::Error)]
-pub enum RobotModelError {
-    #[error("not a valid URDF: {0}")]
-    Parse(String),
-    #[error("robot URDF: {0}")]
-    Layout(String),
-}
-
-/// The arm's kinematic tree and collision shapes, as read from a URDF.
-#[derive(Debug, Clone)]
-pub struct Ur5 {
-    links: Vec<ChainLink>,
-    index: HashMap<String, usize>,
-    /// World pose of `base_link`.
-    pub base: Isometry3<f64>,
-}
-
-impl Default for Ur5 {
-    /// The embedded model at the paper's mount.
+impl Default for Arm {
+    /// The built-in UR5 at the paper's mount.
     fn default() -> Self {
-        Self::from_urdf_str(URDF, default_base()).expect("the embedded URDF is valid")
-    }
-}
-
-impl Ur5 {
-    pub fn from_urdf_str(text: &str, base: Isometry3<f64>) -> Result<Self, RobotModelError> {
-        let robot =
-            urdf_rs::read_from_string(text).map_err(|e| RobotModelError::Parse(e.to_string()))?;
-        let by_child: HashMap<&str, &Joint> = robot
-            .joints
-            .iter()
-            .map(|j| (j.child.link.as_str(), j))
-            .collect();
-        let mut links: Vec<ChainLink> = Vec::new();
-        let mut index = HashMap::new();
-        // Parents before children: repeatedly add links whose parent is known.
-        let mut pending: Vec<&Link> = robot.links.iter().collect();
-        while !pending.is_empty() {
-            let before = pending.len();
-            pending.retain(|l| {
-                let (parent, origin, joint) = match by_child.get(l.name.as_str()) {
-                    None => (None, Isometry3::identity(), None),
-                    Some(j) => {
-                        let Some(&p) = index.get(j.parent.link.as_str()) else {
-                            return true;
-                        };
-                        let o = &j.origin;
-                        let origin = Isometry3::from_parts(
-                            Translation3::new(o.xyz[0], o.xyz[1], o.xyz[2]),
-                            UnitQuaternion::from_euler_angles(o.rpy[0], o.rpy[1], o.rpy[2]),
-                        );
-                        let joint = JOINT_NAMES.iter().position(|n| *n == j.name).map(|q| {
-                            (
-                                q,
-                                Unit::new_normalize(Vector3::new(
-                                    j.axis.xyz[0],
-                                    j.axis.xyz[1],
-                                    j.axis.xyz[2],
-                                )),
-                            )
-                        });
-                        (Some(p), origin, joint)
-                    }
-                };
-                let shapes = l.collision.iter().filter_map(shape_of).collect();
-                index.insert(l.name.clone(), links.len());
-                links.push(ChainLink {
-                    name: l.name.clone(),
-                    parent,
-                    origin,
-                    joint,
-                    shapes,
-                });
-                false
-            });
-            if pending.len() == before {
-                return Err(RobotModelError::Layout(format!(
-                    "links {:?} do not connect to the root",
-                    pending.iter().map(|l| &l.name).collect::<Vec<_>>()
-                )));
-            }
-        }
-        for (q, name) in JOINT_NAMES.iter().enumerate() {
-            if !links.iter().any(|l| l.joint.is_some_and(|(i, _)| i == q)) {
-                return Err(RobotModelError::Layout(format!(
-                    "joint `{name}` is missing"
-                )));
-            }
-        }
-        for name in ["base_link", "tool", "base_link_inertia"] {
-            if !index.contains_key(name) {
-                return Err(RobotModelError::Layout(format!("link `{name}` is missing")));
-            }
-        }
-        Ok(Self { links, index, base })
-    }
-
-    pub fn with_base(mut self, base: Isometry3<f64>) -> Self {
-        self.base = base;
-        self
-    }
-
-    /// World pose of every link at configuration `q`, in the model's link
-    /// order (see [`Ur5::link_names`]).
-    pub fn link_poses(&self, q: &[f64; 6]) -> LinkPoses {
-        let mut poses = LinkPoses::new();
-        for l in &self.links {
-            let parent = l.parent.map_or(self.base, |p| poses[p]);
-            let mut pose = parent * l.origin;
-            if let Some((i, axis)) = &l.joint {
-                pose *= UnitQuaternion::from_axis_angle(axis, q[*i]);
-            }
-            poses.push(pose);
-        }
-        poses
-    }
-
-    /// Each joint's axis in the world at `poses` (from [`Self::link_poses`]):
-    /// a point on it and its unit direction.
-    pub fn joint_axes(&self, poses: &[Isometry3<f64>]) -> [(Point3<f64>, Vector3<f64>); 6] {
-        let mut axes = [(Point3::origin(), Vector3::z()); 6];
-        for (l, link) in self.links.iter().enumerate() {
-            if let Some((i, axis)) = &link.joint {
-                axes[*i] = (
-                    poses[l] * Point3::origin(),
-                    poses[l].rotation * axis.into_inner(),
-                );
-            }
-        }
-        axes
-    }
-
-    /// Whether joint `joint` moves link `link` (the link it drives, or one
-    /// further down the chain).
-    pub fn moved_by(&self, link: usize, joint: usize) -> bool {
-        let mut k = Some(link);
-        while let Some(l) = k {
-            if self.links[l].joint.is_some_and(|(i, _)| i == joint) {
-                return true;
-            }
-            k = self.links[l].parent;
-        }
-        false
-    }
-
-    pub fn link_names(&self) -> impl Iterator<Item = &str> {
-        self.links.iter().map(|l| l.name.as_str())
-    }
-
-    pub fn link_index(&self, name: &str) -> Option<usize> {
-        self.index.get(name).copied()
-    }
-
-    /// Collision shapes of each link, in link order.
-    pub fn link_shapes(&self) -> impl Iterator<Item = (&str, &[LinkShape])> {
-        self.links
-            .iter()
-            .map(|l| (l.name.as_str(), l.shapes.as_slice()))
-    }
-
-    /// Parent link of each link (`None` for the root), in link order.
-    pub fn link_parent(&self, link: usize) -> Option<usize> {
-        self.links[link].parent
-    }
-
-    pub fn tool_pose(&self, q: &[f64; 6]) -> Isometry3<f64> {
-        self.link_poses(q)[self.index["tool"]]
-    }
-
-    /// World pose of the DH base frame 0 (`base_link_inertia`).
-    pub fn dh_base(&self) -> Isometry3<f64> {
-        let i = self.index["base_link_inertia"];
-        self.base * self.links[i].origin
-    }
-
-    /// Every joint configuration that puts the tool at `tool` (world frame),
-    /// within the joint limits, each at the 2π-equivalent nearest to
-    /// `reference`, sorted by distance to it (largest joint difference).
-    pub fn inverse_kinematics(&self, tool: &Isometry3<f64>, reference: &[f64; 6]) -> Vec<[f64; 6]> {
-        let flange = self.dh_base().inverse() * tool * self.tool_in_flange().inverse();
-        let mut solutions: Vec<[f64; 6]> = super::ik::solve(&flange.to_homogeneous(), reference)
-            .iter()
-            .filter_map(|q| super::ik::nearest_within_limits(q, reference))
-            .collect();
-        let distance = |q: &[f64; 6]| {
-            q.iter()
-                .zip(reference)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max)
-        };
-        solutions.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
-        solutions
-    }
-
-    /// The tool frame in the flange (DH frame 6) frame.
-    pub fn tool_in_flange(&self) -> Isometry3<f64> {
-        self.links[self.index["tool"]].origin
-    }
-}
-
-fn shape_of(c: &Collision) -> Option<LinkShape> {
-    let o = &c.origin;
-    let origin = Isometry3::from_parts(
-        Translation3::new(o.xyz[0], o.xyz[1], o.xyz[2]),
-        UnitQuaternion::from_euler_angles(o.rpy[0], o.rpy[1], o.rpy[2]),
-    );
-    match c.geometry {
-        Geometry::Capsule { radius, length } => Some(LinkShape::Capsule {
-            a: (origin * Point3::new(0.0, 0.0, -length / 2.0)).coords,
-            b: (origin * Point3::new(0.0, 0.0, length / 2.0)).coords,
-            radius,
-        }),
-        Geometry::Box { size } => Some(LinkShape::Box {
-            centre: origin,
-            half_extents: Vector3::new(size[0], size[1], size[2]) / 2.0,
-        }),
-        _ => None,
+        Self::ur5(default_base())
     }
 }

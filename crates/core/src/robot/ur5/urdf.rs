@@ -4,7 +4,7 @@
 
 use std::f64::consts::PI;
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use urdf_rs::{
     Axis, Collision, Geometry, Inertial, Joint, JointLimit, JointType, Link, LinkName, Pose, Robot,
     Vec3,

@@ -1,0 +1,563 @@
+//! [`Arm`]: any serial arm the planner drives, built from a
+//! [`RobotDescription`] (an imported robot, a bare URDF described on the
+//! fly, or the built-in UR5 of [`super::ur5`]).
+//!
+//! The arm is a tree of links in parent-before-child order: the chain's
+//! links, each moved by its joint (revolute or prismatic, or following
+//! another as a mimic joint), and every other link with collision shapes
+//! fixed on the chain link it rides on (hands, fingers and joints off the
+//! chain stay where they are at zero). The pusher tool sits on the tip:
+//! the ⊔ gripper's boxes, unless the URDF carries them, and the tool frame
+//! `tool` at the palm's face.
+//!
+//! Inverse kinematics takes the closed form when the chain has UR
+//! kinematics ([`UrKinematics::detect`]: 2.5 µs a pose) and damped least
+//! squares with restarts otherwise ([`super::ik_numeric`]).
+
+use std::collections::HashMap;
+
+use nalgebra::{Isometry3, Point3, Unit, UnitQuaternion, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use super::chain::{Chain, JointKind};
+use super::description::RobotDescription;
+use super::ik_numeric::{IkOptions, random_configuration, solve};
+use super::joint_vector::{JointVector, MAX_DOF};
+use super::link_geometry::LinkShape;
+use super::ur_kinematics::UrKinematics;
+use super::ur5::{GRIPPER_BOXES, TOOL_OFFSET};
+
+/// World poses of the links, in the arm's link order: on the stack for
+/// arms of up to 24 links, since the collision checker computes them for
+/// every pose it checks.
+pub type LinkPoses = smallvec::SmallVec<[Isometry3<f64>; 24]>;
+
+/// The name of the tool frame's link.
+pub const TOOL_LINK: &str = "tool";
+/// The name of the link carrying the ⊔ gripper's boxes when they are
+/// added to a description's tip.
+pub const GRIPPER_LINK: &str = "gripper";
+
+/// Starts tried for the pre-contact poses of a numerical chain, besides
+/// the reference: each converged one that differs from the others is a
+/// solution (a closed form gives up to 8).
+const IK_STARTS: usize = 10;
+/// Two solutions closer than this in every joint are one (rad or m).
+const SAME_SOLUTION: f64 = 0.05;
+
+/// A joint variable: its limits (rad or m; per second, per second²).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmJoint {
+    pub name: String,
+    pub kind: JointKind,
+    pub lower: f64,
+    pub upper: f64,
+    pub velocity: f64,
+    pub acceleration: f64,
+    pub jerk: Option<f64>,
+}
+
+/// How a link moves relative to its parent.
+#[derive(Debug, Clone, Copy)]
+struct Motion {
+    variable: usize,
+    multiplier: f64,
+    offset: f64,
+    axis: Unit<Vector3<f64>>,
+    prismatic: bool,
+}
+
+#[derive(Debug, Clone)]
+struct ArmLink {
+    name: String,
+    parent: Option<usize>,
+    /// Pose of the joint frame in the parent link.
+    origin: Isometry3<f64>,
+    motion: Option<Motion>,
+    shapes: Vec<LinkShape>,
+}
+
+#[derive(Debug, Clone)]
+enum Solver {
+    Ur(Box<UrKinematics>),
+    Numeric,
+}
+
+/// An arm: its links, joints, collision shapes, tool and solver.
+#[derive(Debug, Clone)]
+pub struct Arm {
+    name: String,
+    links: Vec<ArmLink>,
+    index: HashMap<String, usize>,
+    joints: Vec<ArmJoint>,
+    chain: Chain,
+    solver: Solver,
+    tip: usize,
+    tool: usize,
+    home: JointVector,
+    disabled_pairs: Vec<(String, String)>,
+    /// World pose of the chain's base link.
+    pub base: Isometry3<f64>,
+}
+
+impl Arm {
+    /// The arm `description` describes, its base at the world origin.
+    pub fn from_description(d: &RobotDescription) -> Result<Self, String> {
+        let chain = d.chain()?;
+        let dof = chain.dof();
+        if dof == 0 || dof > MAX_DOF {
+            return Err(format!("{dof} joints: an arm has 1 to {MAX_DOF}"));
+        }
+        let mut links = vec![ArmLink {
+            name: d.base_link.clone(),
+            parent: None,
+            origin: Isometry3::identity(),
+            motion: None,
+            shapes: Vec::new(),
+        }];
+        for j in &chain.joints {
+            let source = match (j.variable, j.mimic) {
+                (Some(v), _) => Some((v, 1.0, 0.0)),
+                (None, Some(m)) => Some((m.variable, m.multiplier, m.offset)),
+                _ => None,
+            };
+            if j.mimic.is_some() && j.kind != JointKind::Fixed {
+                // Edge checks bound each point's speed joint by joint; a
+                // second joint turning with the same variable about another
+                // axis would break that bound.
+                return Err(format!(
+                    "joint `{}` mimics another on the planning chain, which the planner does not support (mimic joints off the chain are held at zero)",
+                    j.name
+                ));
+            }
+            let motion = source.filter(|_| j.kind != JointKind::Fixed).map(
+                |(variable, multiplier, offset)| Motion {
+                    variable,
+                    multiplier,
+                    offset,
+                    axis: j.axis,
+                    prismatic: j.kind == JointKind::Prismatic,
+                },
+            );
+            links.push(ArmLink {
+                name: j.child_link.clone(),
+                parent: Some(links.len() - 1),
+                origin: j.origin,
+                motion,
+                shapes: Vec::new(),
+            });
+        }
+        let tip = links.len() - 1;
+        let mut index: HashMap<String, usize> = links
+            .iter()
+            .enumerate()
+            .map(|(k, l)| (l.name.clone(), k))
+            .collect();
+        for (k, l) in d.links.iter().enumerate() {
+            let shapes = l
+                .shapes
+                .iter()
+                .enumerate()
+                .map(|(m, s)| {
+                    s.shape()
+                        .map_err(|e| format!("links[{k}] ({}).shapes[{m}]: {e}", l.name))
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            let frame = *index.get(&l.frame).ok_or_else(|| {
+                format!(
+                    "links[{k}] ({}): frame `{}` is not a link of the chain",
+                    l.name, l.frame
+                )
+            })?;
+            let pose = l.pose.isometry();
+            if l.name == l.frame {
+                // A chain link's own shapes (its pose the identity, up to
+                // rounding).
+                links[frame]
+                    .shapes
+                    .extend(shapes.iter().map(|s| s.placed(&pose)));
+            } else if index.contains_key(&l.name) {
+                return Err(format!("links[{k}] ({}): listed twice", l.name));
+            } else {
+                index.insert(l.name.clone(), links.len());
+                links.push(ArmLink {
+                    name: l.name.clone(),
+                    parent: Some(frame),
+                    origin: pose,
+                    motion: None,
+                    shapes,
+                });
+            }
+        }
+        let mount = d.tool.mount.isometry();
+        for name in [GRIPPER_LINK, TOOL_LINK] {
+            if index.contains_key(name) && (name == TOOL_LINK || d.tool.gripper) {
+                return Err(format!(
+                    "the link name `{name}` is the tool's; the robot has a link of that name"
+                ));
+            }
+        }
+        if d.tool.gripper {
+            index.insert(GRIPPER_LINK.to_owned(), links.len());
+            links.push(ArmLink {
+                name: GRIPPER_LINK.to_owned(),
+                parent: Some(tip),
+                origin: mount,
+                motion: None,
+                shapes: GRIPPER_BOXES
+                    .iter()
+                    .map(|b| LinkShape::Box {
+                        pose: Isometry3::translation(b.centre[0], b.centre[1], b.centre[2]),
+                        half_extents: Vector3::from(b.size) / 2.0,
+                    })
+                    .collect(),
+            });
+        }
+        let tool = links.len();
+        index.insert(TOOL_LINK.to_owned(), tool);
+        links.push(ArmLink {
+            name: TOOL_LINK.to_owned(),
+            parent: Some(tip),
+            origin: mount * Isometry3::translation(0.0, 0.0, TOOL_OFFSET),
+            motion: None,
+            shapes: Vec::new(),
+        });
+        let accelerations = d.acceleration_limits();
+        let jerks: Vec<Option<f64>> = d
+            .joints
+            .iter()
+            .filter(|j| j.acceleration.is_some())
+            .map(|j| j.jerk)
+            .collect();
+        let joints: Vec<ArmJoint> = chain
+            .variables()
+            .zip(accelerations.iter().zip(&jerks))
+            .map(|(j, (a, jerk))| ArmJoint {
+                name: j.name.clone(),
+                kind: j.kind,
+                lower: j.lower,
+                upper: j.upper,
+                velocity: j.velocity,
+                acceleration: *a,
+                jerk: *jerk,
+            })
+            .collect();
+        if joints.len() != dof {
+            return Err(format!(
+                "{} acceleration limits for {dof} joints",
+                joints.len()
+            ));
+        }
+        let home = JointVector::from_slice(&d.home);
+        for (k, (q, j)) in home.iter().zip(&joints).enumerate() {
+            if !(q.is_finite() && j.lower <= *q && *q <= j.upper) {
+                return Err(format!("home[{k}] = {q} is outside the joint's limits"));
+            }
+        }
+        for p in &d.disabled_pairs {
+            for l in [&p.a, &p.b] {
+                if !index.contains_key(l) {
+                    return Err(format!("disabled_pairs: `{l}` is not a link of the robot"));
+                }
+            }
+        }
+        let solver = match UrKinematics::detect(&chain) {
+            Some(ur) => Solver::Ur(Box::new(ur)),
+            None => Solver::Numeric,
+        };
+        Ok(Self {
+            name: d.name.clone(),
+            links,
+            index,
+            joints,
+            chain,
+            solver,
+            tip,
+            tool,
+            home,
+            disabled_pairs: d
+                .disabled_pairs
+                .iter()
+                .map(|p| (p.a.clone(), p.b.clone()))
+                .collect(),
+            base: Isometry3::identity(),
+        })
+    }
+
+    pub fn with_base(mut self, base: Isometry3<f64>) -> Self {
+        self.base = base;
+        self
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Number of joint variables.
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    pub fn joints(&self) -> &[ArmJoint] {
+        &self.joints
+    }
+
+    pub fn joint_names(&self) -> impl Iterator<Item = &str> {
+        self.joints.iter().map(|j| j.name.as_str())
+    }
+
+    /// Each joint's position limits.
+    pub fn limits(&self) -> Vec<(f64, f64)> {
+        self.joints.iter().map(|j| (j.lower, j.upper)).collect()
+    }
+
+    pub fn velocity_limits(&self) -> JointVector {
+        JointVector::from_fn(self.dof(), |i| self.joints[i].velocity)
+    }
+
+    pub fn acceleration_limits(&self) -> JointVector {
+        JointVector::from_fn(self.dof(), |i| self.joints[i].acceleration)
+    }
+
+    /// Jerk limits, when the description gives one for every joint.
+    pub fn jerk_limits(&self) -> Option<JointVector> {
+        let jerks: Option<Vec<f64>> = self.joints.iter().map(|j| j.jerk).collect();
+        jerks.map(|j| JointVector::from_slice(&j))
+    }
+
+    /// The home configuration.
+    pub fn home(&self) -> JointVector {
+        self.home
+    }
+
+    /// Whether `q` has one finite value per joint, each within its limits.
+    pub fn within_limits(&self, q: &[f64]) -> bool {
+        q.len() == self.dof()
+            && q.iter()
+                .zip(&self.joints)
+                .all(|(v, j)| v.is_finite() && j.lower <= *v && *v <= j.upper)
+    }
+
+    /// The planning chain (base link to tip link).
+    pub fn chain(&self) -> &Chain {
+        &self.chain
+    }
+
+    /// Link pairs the description leaves unchecked (besides parent/child).
+    pub fn disabled_pairs(&self) -> &[(String, String)] {
+        &self.disabled_pairs
+    }
+
+    /// Whether the closed-form UR solver serves this arm.
+    pub fn has_closed_form_ik(&self) -> bool {
+        matches!(self.solver, Solver::Ur(_))
+    }
+
+    /// World pose of every link at configuration `q`, in the arm's link
+    /// order (see [`Arm::link_names`]).
+    pub fn link_poses(&self, q: &[f64]) -> LinkPoses {
+        let mut poses = LinkPoses::new();
+        for l in &self.links {
+            let parent = l.parent.map_or(self.base, |p| poses[p]);
+            let mut pose = parent * l.origin;
+            if let Some(m) = &l.motion {
+                let value = m.multiplier * q[m.variable] + m.offset;
+                if m.prismatic {
+                    pose.translation.vector += pose.rotation * (m.axis.into_inner() * value);
+                } else {
+                    pose *= UnitQuaternion::from_axis_angle(&m.axis, value);
+                }
+            }
+            poses.push(pose);
+        }
+        poses
+    }
+
+    /// Each joint's axis in the world at `poses` (from
+    /// [`Self::link_poses`]): a point on it, its unit direction, and
+    /// whether the joint slides along it rather than turning about it.
+    pub fn joint_axes(&self, poses: &[Isometry3<f64>]) -> JointAxes {
+        let mut axes: JointAxes = (0..self.dof())
+            .map(|_| (Point3::origin(), Vector3::z(), false))
+            .collect();
+        for (l, link) in self.links.iter().enumerate() {
+            if let Some(m) = &link.motion {
+                axes[m.variable] = (
+                    poses[l] * Point3::origin(),
+                    poses[l].rotation * m.axis.into_inner(),
+                    m.prismatic,
+                );
+            }
+        }
+        axes
+    }
+
+    /// Whether joint `joint` moves link `link` (the link it drives, or one
+    /// further down the chain).
+    pub fn moved_by(&self, link: usize, joint: usize) -> bool {
+        let mut k = Some(link);
+        while let Some(l) = k {
+            if self.links[l].motion.is_some_and(|m| m.variable == joint) {
+                return true;
+            }
+            k = self.links[l].parent;
+        }
+        false
+    }
+
+    /// Whether `link` moves rigidly with the tip (the tip, links welded to
+    /// it, the tool): these may touch the branch the tool holds.
+    pub fn carried_by_tip(&self, link: usize) -> bool {
+        (0..self.dof()).all(|j| self.moved_by(link, j) == self.moved_by(self.tip, j))
+    }
+
+    /// Whether `link` never moves (the base and what is bolted to it).
+    pub fn fixed_to_base(&self, link: usize) -> bool {
+        (0..self.dof()).all(|j| !self.moved_by(link, j))
+    }
+
+    /// Upper bounds, in any configuration, on the distance from each
+    /// joint's axis to any point of a shape it moves (m, padded by
+    /// `slack`): the sum of the link offsets from the joint's frame down
+    /// to the shape's link (plus a prismatic joint's travel) and the
+    /// shape's own reach from its link's origin. The conservative-advancement
+    /// edge check never lets a joint move a point faster than this.
+    pub fn lever_arms(&self, slack: f64) -> JointVector {
+        let mut arms = JointVector::zeros(self.dof());
+        for (l, link) in self.links.iter().enumerate() {
+            let reach = link.shapes.iter().map(LinkShape::reach).fold(0.0, f64::max);
+            if link.shapes.is_empty() && l != self.tool {
+                continue;
+            }
+            // Walk up from the link, adding each offset, to every joint.
+            let mut offset = reach;
+            let mut k = l;
+            loop {
+                if let Some(m) = &self.links[k].motion {
+                    arms[m.variable] = arms[m.variable].max(offset + slack);
+                    if m.prismatic {
+                        let j = &self.joints[m.variable];
+                        offset += j.lower.abs().max(j.upper.abs()) * m.multiplier.abs();
+                    }
+                }
+                offset += self.links[k].origin.translation.vector.norm();
+                match self.links[k].parent {
+                    Some(p) => k = p,
+                    None => break,
+                }
+            }
+        }
+        arms
+    }
+
+    pub fn link_names(&self) -> impl Iterator<Item = &str> {
+        self.links.iter().map(|l| l.name.as_str())
+    }
+
+    pub fn link_index(&self, name: &str) -> Option<usize> {
+        self.index.get(name).copied()
+    }
+
+    /// Collision shapes of each link, in link order.
+    pub fn link_shapes(&self) -> impl Iterator<Item = (&str, &[LinkShape])> {
+        self.links
+            .iter()
+            .map(|l| (l.name.as_str(), l.shapes.as_slice()))
+    }
+
+    /// Parent link of each link (`None` for the root), in link order.
+    pub fn link_parent(&self, link: usize) -> Option<usize> {
+        self.links[link].parent
+    }
+
+    /// The tip link's name.
+    pub fn tip_link(&self) -> &str {
+        &self.links[self.tip].name
+    }
+
+    /// The chain's base link's name.
+    pub fn base_link(&self) -> &str {
+        &self.links[0].name
+    }
+
+    pub fn tool_pose(&self, q: &[f64]) -> Isometry3<f64> {
+        self.link_poses(q)[self.tool]
+    }
+
+    /// The tool frame in the tip's frame.
+    pub fn tool_in_tip(&self) -> Isometry3<f64> {
+        self.links[self.tool].origin
+    }
+
+    /// The tip pose (chain base frame) that puts the tool at `tool` (world).
+    fn tip_goal(&self, tool: &Isometry3<f64>) -> Isometry3<f64> {
+        self.base.inverse() * tool * self.tool_in_tip().inverse()
+    }
+
+    /// Every joint configuration found that puts the tool at `tool` (world
+    /// frame), within the joint limits, nearest `reference` first (largest
+    /// joint difference). The closed form gives every solution; a
+    /// numerical chain the one reached from `reference` and those reached
+    /// from [`IK_STARTS`] fixed random starts.
+    pub fn inverse_kinematics(
+        &self,
+        tool: &Isometry3<f64>,
+        reference: &JointVector,
+    ) -> Vec<JointVector> {
+        let goal = self.tip_goal(tool);
+        let mut solutions: Vec<JointVector> = match &self.solver {
+            Solver::Ur(ur) => {
+                let reference: [f64; 6] = std::array::from_fn(|i| reference[i]);
+                ur.solve(&goal, &reference)
+                    .iter()
+                    .map(|q| JointVector::from_slice(q))
+                    .collect()
+            }
+            Solver::Numeric => {
+                let mut rng = ChaCha8Rng::seed_from_u64(0x1c);
+                let mut found: Vec<JointVector> = Vec::new();
+                let starts = std::iter::once(reference.to_vec())
+                    .chain((0..IK_STARTS).map(|_| random_configuration(&self.chain, &mut rng)));
+                for start in starts {
+                    if let Some(q) = self.solve_from(&goal, &start) {
+                        if found.iter().all(|f| f.max_abs_diff(&q) > SAME_SOLUTION) {
+                            found.push(q);
+                        }
+                    }
+                }
+                found
+            }
+        };
+        solutions.sort_by(|a, b| {
+            a.max_abs_diff(reference)
+                .total_cmp(&b.max_abs_diff(reference))
+        });
+        solutions
+    }
+
+    /// The configuration nearest `reference` that puts the tool at `tool`,
+    /// for following a path: the nearest closed-form solution, or the
+    /// numerical solver started at `reference` alone.
+    pub fn inverse_kinematics_near(
+        &self,
+        tool: &Isometry3<f64>,
+        reference: &JointVector,
+    ) -> Option<JointVector> {
+        match &self.solver {
+            Solver::Ur(_) => self.inverse_kinematics(tool, reference).first().copied(),
+            Solver::Numeric => self.solve_from(&self.tip_goal(tool), reference),
+        }
+    }
+
+    fn solve_from(&self, goal: &Isometry3<f64>, start: &[f64]) -> Option<JointVector> {
+        let options = IkOptions {
+            restarts: 1,
+            ..IkOptions::default()
+        };
+        solve(&self.chain, goal, start, &options).map(|q| JointVector::from_slice(&q))
+    }
+}
+
+/// Per joint: a point on its axis, the axis, whether it is prismatic.
+pub type JointAxes = smallvec::SmallVec<[(Point3<f64>, Vector3<f64>, bool); MAX_DOF]>;

@@ -1,0 +1,205 @@
+//! Which arms a server plans for: `NAME=PATH[,tip=LINK][,base=LINK]`
+//! specifications ([`RobotSpec`]), each loaded from an imported
+//! description (`.toml`) or a bare URDF ([`load`]), and the built-in UR5.
+
+use std::path::{Path, PathBuf};
+
+use super::arm::Arm;
+use super::chain::parse_urdf;
+use super::description::{DescriptionError, RobotConfig, RobotDescription, SELF_COLLISION_SAMPLES};
+use super::import::{Blame, describe};
+
+/// The built-in arm's name.
+pub const BUILT_IN: &str = "ur5";
+
+/// One `--robot` value.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotSpec {
+    pub name: String,
+    pub path: PathBuf,
+    pub tip: Option<String>,
+    pub base: Option<String>,
+}
+
+impl std::str::FromStr for RobotSpec {
+    type Err = String;
+
+    /// `NAME=PATH[,tip=LINK][,base=LINK]`.
+    fn from_str(text: &str) -> Result<Self, String> {
+        let mut parts = text.split(',');
+        let head = parts.next().unwrap_or_default();
+        let (name, path) = head
+            .split_once('=')
+            .ok_or_else(|| format!("`{text}`: expected NAME=PATH[,tip=LINK][,base=LINK]"))?;
+        let valid = |s: &str| {
+            !s.is_empty()
+                && s.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        };
+        if !valid(name) {
+            return Err(format!(
+                "`{text}`: the robot's name must be letters, digits, `_` or `-`"
+            ));
+        }
+        if path.is_empty() {
+            return Err(format!("`{text}`: no path"));
+        }
+        let mut spec = RobotSpec {
+            name: name.to_owned(),
+            path: PathBuf::from(path),
+            tip: None,
+            base: None,
+        };
+        for part in parts {
+            match part.split_once('=') {
+                Some(("tip", link)) if !link.is_empty() => spec.tip = Some(link.to_owned()),
+                Some(("base", link)) if !link.is_empty() => spec.base = Some(link.to_owned()),
+                _ => {
+                    return Err(format!(
+                        "`{text}`: unknown option `{part}` (tip=LINK or base=LINK)"
+                    ));
+                }
+            }
+        }
+        Ok(spec)
+    }
+}
+
+/// The specifications in `TREEMANIP_ROBOTS`-style text: separated by `;`
+/// or whitespace.
+pub fn parse_list(text: &str) -> Result<Vec<RobotSpec>, String> {
+    text.split(|c: char| c == ';' || c.is_whitespace())
+        .filter(|s| !s.is_empty())
+        .map(str::parse)
+        .collect()
+}
+
+/// The description `spec` names: an imported description (`.toml`; `tip`
+/// and `base` must then be absent, the chain is fixed at import), or a
+/// URDF described now (its meshes fitted, its self-collision pairs sampled)
+/// with the documented defaults ([`super::description`]).
+pub fn load_description(
+    spec: &RobotSpec,
+    packages: &[PathBuf],
+) -> Result<RobotDescription, DescriptionError> {
+    let fail = |file: &Path, message: String| DescriptionError {
+        file: file.to_path_buf(),
+        message,
+    };
+    let text = std::fs::read_to_string(&spec.path)
+        .map_err(|e| fail(&spec.path, format!("cannot be read: {e}")))?;
+    let is_toml = spec.path.extension().is_some_and(|e| e == "toml");
+    let mut description = if is_toml {
+        if spec.tip.is_some() || spec.base.is_some() {
+            return Err(fail(
+                &spec.path,
+                "an imported description's chain is fixed: re-import it for another tip or base"
+                    .to_owned(),
+            ));
+        }
+        RobotDescription::from_toml_str(&text, &spec.path)?
+    } else {
+        let robot = parse_urdf(&text).map_err(|e| fail(&spec.path, e.to_string()))?;
+        let config = RobotConfig {
+            name: spec.name.clone(),
+            urdf: spec.path.clone(),
+            base_link: spec.base.clone(),
+            tip_link: spec.tip.clone(),
+            acceleration: None,
+            jerk: None,
+            home: None,
+            disabled_pairs: Vec::new(),
+            licence: String::new(),
+            tool: Default::default(),
+        };
+        let command = format!("--robot {}={}", spec.name, spec.path.display());
+        describe(
+            config,
+            &robot,
+            spec.path.parent(),
+            packages,
+            &command,
+            SELF_COLLISION_SAMPLES,
+        )
+        .map_err(|(blame, message)| match blame {
+            Blame::Config | Blame::Urdf => fail(&spec.path, message),
+        })?
+    };
+    description.name = spec.name.clone();
+    Ok(description)
+}
+
+/// The arm `spec` names (see [`load_description`]).
+pub fn load(spec: &RobotSpec, packages: &[PathBuf]) -> Result<Arm, DescriptionError> {
+    let description = load_description(spec, packages)?;
+    Arm::from_description(&description).map_err(|message| DescriptionError {
+        file: spec.path.clone(),
+        message,
+    })
+}
+
+/// Where shipped descriptions live, relative to the working directory.
+pub const SHIPPED_DIR: &str = "robots";
+
+/// The arm a command line names: `ur5` (the built-in), a specification
+/// `NAME=PATH[,tip=LINK][,base=LINK]`, a path to a description or URDF, or
+/// the name of a shipped description (`panda` is `robots/panda.toml`).
+pub fn resolve(text: &str, packages: &[PathBuf]) -> Result<Arm, DescriptionError> {
+    if text == BUILT_IN {
+        return Ok(Arm::ur5(Default::default()));
+    }
+    let spec = if text.contains('=') {
+        text.parse::<RobotSpec>()
+            .map_err(|message| DescriptionError {
+                file: PathBuf::from(text),
+                message,
+            })?
+    } else {
+        let path = PathBuf::from(text);
+        let path = if path.exists() {
+            path
+        } else {
+            Path::new(SHIPPED_DIR).join(format!("{text}.toml"))
+        };
+        let name = path
+            .file_stem()
+            .map_or_else(|| text.to_owned(), |s| s.to_string_lossy().into_owned());
+        RobotSpec {
+            name,
+            path,
+            tip: None,
+            base: None,
+        }
+    };
+    load(&spec, packages)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specifications_parse_or_say_what_is_wrong() {
+        let s: RobotSpec = "panda=robots/panda.urdf,tip=panda_hand,base=panda_link0"
+            .parse()
+            .unwrap();
+        assert_eq!(s.name, "panda");
+        assert_eq!(s.path, PathBuf::from("robots/panda.urdf"));
+        assert_eq!(s.tip.as_deref(), Some("panda_hand"));
+        assert_eq!(s.base.as_deref(), Some("panda_link0"));
+        assert!(
+            "panda"
+                .parse::<RobotSpec>()
+                .unwrap_err()
+                .contains("NAME=PATH")
+        );
+        assert!("a b=x".parse::<RobotSpec>().unwrap_err().contains("name"));
+        assert!(
+            "a=x,elbow=y"
+                .parse::<RobotSpec>()
+                .unwrap_err()
+                .contains("unknown option")
+        );
+        assert_eq!(parse_list("a=x.toml; b=y.urdf,tip=t").unwrap().len(), 2);
+    }
+}
