@@ -80,3 +80,33 @@ export class TreeMesh {
   }
 }
 
+
+/**
+ * A mesh for one collision shape of `/v1/robot/link-poses` in its link's
+ * frame: capsules and cylinders in `arm`, boxes (the gripper's) in `grip`.
+ */
+export function shapeMesh(s, arm, grip) {
+  let m = null;
+  if (s.kind === 'capsule') {
+    const a = new THREE.Vector3(...s.a);
+    const b = new THREE.Vector3(...s.b);
+    m = new THREE.Mesh(new THREE.CapsuleGeometry(s.radius, Math.max(a.distanceTo(b), 1e-6), 6, 16), arm);
+    placeBetween(m, a, b);
+    return m;
+  }
+  if (s.kind === 'cylinder') {
+    m = new THREE.Mesh(new THREE.CylinderGeometry(s.radius, s.radius, 2 * s.half_length, 16), arm);
+  } else if (s.kind === 'box') {
+    const h = s.half_extents;
+    m = new THREE.Mesh(new THREE.BoxGeometry(2 * h[0], 2 * h[1], 2 * h[2]), grip);
+  } else {
+    return null;
+  }
+  m.position.set(s.pose[0], s.pose[1], s.pose[2]);
+  m.quaternion.set(s.pose[3], s.pose[4], s.pose[5], s.pose[6]);
+  if (s.kind === 'cylinder') {
+    // three.js cylinders run along y; ours along the pose's z.
+    m.quaternion.multiply(new THREE.Quaternion().setFromAxisAngle(new THREE.Vector3(1, 0, 0), Math.PI / 2));
+  }
+  return m;
+}

@@ -6,7 +6,7 @@
 
 import * as THREE from './vendor/three.module.min.js';
 import { OrbitControls } from './vendor/OrbitControls.js';
-import { COLOURS, NODE_RADIUS, TreeMesh, placeBetween } from './meshes.js';
+import { COLOURS, NODE_RADIUS, TreeMesh, shapeMesh } from './meshes.js';
 
 const $ = (id) => document.getElementById(id);
 
@@ -347,19 +347,8 @@ function armMesh(links, base) {
     const frame = new THREE.Group();
     frame.name = link.name;
     for (const s of link.shapes) {
-      if (s.kind === 'capsule') {
-        const a = new THREE.Vector3(...s.a);
-        const b = new THREE.Vector3(...s.b);
-        const m = new THREE.Mesh(new THREE.CapsuleGeometry(s.radius, Math.max(a.distanceTo(b), 1e-6), 6, 16), armMaterial);
-        placeBetween(m, a, b);
-        frame.add(m);
-      } else if (s.kind === 'box') {
-        const h = s.half_extents;
-        const m = new THREE.Mesh(new THREE.BoxGeometry(2 * h[0], 2 * h[1], 2 * h[2]), gripMaterial);
-        m.position.set(s.pose[0], s.pose[1], s.pose[2]);
-        m.quaternion.set(s.pose[3], s.pose[4], s.pose[5], s.pose[6]);
-        frame.add(m);
-      }
+      const m = shapeMesh(s, armMaterial, gripMaterial);
+      if (m) frame.add(m);
     }
     group.add(frame);
     return frame;
@@ -439,8 +428,9 @@ async function plan() {
     request.target_positions = state.target;
     setLayer('region', null);
   }
+  request.robot = { name: $('plan-robot').value || undefined };
   if ($('plan-region').checked) {
-    request.robot = { base_region: { min: [-1.0, -0.5, 0.1], max: [0.0, 0.5, 1.0] } };
+    request.robot.base_region = { min: [-1.0, -0.5, 0.1], max: [0.0, 0.5, 1.0] };
   }
   state.playing = false;
   // The arm's scene: tree, target and affordances; the push comparison
@@ -462,7 +452,7 @@ async function plan() {
   }
   const configurations = answer.trajectory.map((p) => p.q);
   const [poses, truth] = await Promise.all([
-    api('/v1/robot/link-poses', { base: answer.base, configurations }),
+    api('/v1/robot/link-poses', { robot: answer.robot, base: answer.base, configurations }),
     api('/v1/simulate', { tree: state.tree, contact_node: answer.node, push: answer.push }),
   ]);
   state.plan = answer;
@@ -586,5 +576,23 @@ window.treemanipViewer = {
   play,
 };
 
-document.body.dataset.ready = '1';
+/** The arms the server plans for (GET /v1/robots), default first. */
+async function loadRobots() {
+  const select = $('plan-robot');
+  const { robots } = await api('/v1/robots');
+  robots.sort((a, b) => Number(b.default) - Number(a.default));
+  for (const r of robots) {
+    const option = document.createElement('option');
+    option.value = r.name;
+    option.textContent = `${r.name} (${r.dof} joints)`;
+    select.append(option);
+  }
+}
+
+loadRobots().then(() => {
+  document.body.dataset.ready = '1';
+}, (e) => {
+  document.body.dataset.ready = '1';
+  $('plan-status').textContent = e.message;
+});
 requestAnimationFrame(tick);

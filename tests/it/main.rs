@@ -17,6 +17,7 @@ mod onnx_parity;
 mod openapi_spec;
 mod planner;
 mod readme_examples;
+mod robot_arms;
 mod robot_chain;
 mod robot_collision;
 mod robot_description;

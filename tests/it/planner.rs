@@ -377,7 +377,7 @@ fn obstacles_are_respected_and_named() {
     let set = models();
     let (policy, forward) = policy_and_forward(&set);
     let planner = Planner::default();
-    let (tree, targets) = episode(10, 3);
+    let (tree, targets) = episode(10, 4);
     let mut q = query(&tree, &targets, Strategy::Physics, false);
     let plan = planner.plan(&q, policy, Some(forward)).unwrap();
     let p = plan.plan.as_ref().expect("the open scene plans");

@@ -67,17 +67,25 @@ impl BasePose {
     }
 }
 
-/// Horizontal distances (m) from the grip point at which the base is tried:
-/// the UR5 reaches about 0.85 m, and pushes work best mid-reach.
+/// Horizontal distances (m) from the grip point at which the base is tried,
+/// for the built-in UR5 (other arms scale them by their reach, see
+/// [`proposals`]): the UR5 reaches about 0.85 m, and pushes work best
+/// mid-reach.
 const STAND_OFF: [f64; 2] = [0.5, 0.65];
 /// Sideways offsets (m) across the push.
 const SIDEWAYS: [f64; 3] = [0.0, 0.2, -0.2];
 /// Base heights below the grip point (m).
 const BELOW: [f64; 2] = [0.3, 0.05];
 
-/// Candidate base poses for `push`, most promising first, all inside
+/// The built-in UR5's [`crate::robot::Arm::reach`] (m), which the
+/// proposals' distances are for.
+const UR5_REACH: f64 = 1.079_103_269_666_350_5;
+
+/// Candidate base poses for `push` by an arm of reach `reach`
+/// ([`crate::robot::Arm::reach`]), most promising first, all inside
 /// `region` (duplicates after clamping removed).
-pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push) -> Vec<BasePose> {
+pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push, reach: f64) -> Vec<BasePose> {
+    let scale = reach / UR5_REACH;
     let Some(branch) = tree.branch_direction(push.node) else {
         return Vec::new();
     };
@@ -96,7 +104,8 @@ pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push) -> Vec<BasePose>
     for &below in &BELOW {
         for &stand_off in &STAND_OFF {
             for &side in &SIDEWAYS {
-                let wanted = grip.coords - ahead * stand_off + across * side - Vector3::z() * below;
+                let wanted = grip.coords - ahead * (stand_off * scale) + across * (side * scale)
+                    - Vector3::z() * (below * scale);
                 let position = wanted.sup(&region.min).inf(&region.max);
                 let facing = grip.coords - position;
                 let mut yaw = facing.y.atan2(facing.x);
@@ -117,10 +126,10 @@ pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push) -> Vec<BasePose>
     out
 }
 
-/// Start configurations tried at a chosen base when the request gives none:
-/// the arm's home, then (for UR kinematics) the arm folded up and back from
-/// the tree, or (any other arm) home turned a quarter turn either way about
-/// the first joint, where the joint allows.
+/// Start configurations tried when the request gives none: the arm's home,
+/// then (for UR kinematics) the arm folded up and back from the tree, or
+/// (any other arm) home turned about the first joint away from the tree (a
+/// half turn, or as far as the joint allows) or a quarter turn either way.
 pub fn tucked_starts(arm: &crate::robot::Arm) -> Vec<Config> {
     use std::f64::consts::{FRAC_PI_2, PI};
     let home = arm.home();
@@ -143,10 +152,13 @@ pub fn tucked_starts(arm: &crate::robot::Arm) -> Vec<Config> {
             0.0,
         ]));
     } else {
-        for turn in [FRAC_PI_2, -FRAC_PI_2] {
+        let (lo, hi) = arm.limits()[0];
+        for turn in [PI, -PI, FRAC_PI_2, -FRAC_PI_2] {
             let mut q = home;
-            q[0] += turn;
-            out.push(q);
+            q[0] = (q[0] + turn).clamp(lo, hi);
+            if out.iter().all(|o| o.max_abs_diff(&q) > 0.1) {
+                out.push(q);
+            }
         }
     }
     out.retain(|q| arm.within_limits(q));

@@ -275,11 +275,17 @@ impl Planner {
         let fixed = match &query.stance {
             Stance::Fixed(base) => {
                 let arm = self.placed_at(base);
-                let start = query.start.unwrap_or_else(|| self.arm.robot.home());
                 let free = PlanningScene::new(&arm, &rest, Allowed::default());
-                if !free.config_valid(&start) {
+                // No start given: home, or else the first free tucked pose.
+                let start = match query.start {
+                    Some(q) => Some(q).filter(|q| free.config_valid(q)),
+                    None => base::tucked_starts(&arm.robot)
+                        .into_iter()
+                        .find(|q| free.config_valid(q)),
+                };
+                let Some(start) = start else {
                     return Err(PlanError::StartInCollision);
-                }
+                };
                 Some(Placed {
                     pose: BasePose::of(base),
                     arm,
@@ -510,13 +516,14 @@ impl Planner {
             }
         }
         let attempts = run.attempts;
+        let home = self.arm.robot.home();
         let (base, start, start_chosen) = match (&found, &fixed) {
             (Some(f), _) => (
                 f.placed.pose,
                 f.placed.start,
-                query.start.is_none() && fixed.is_none(),
+                query.start.is_none() && (fixed.is_none() || f.placed.start != home),
             ),
-            (None, Some(f)) => (f.pose, f.start, false),
+            (None, Some(f)) => (f.pose, f.start, query.start.is_none() && f.start != home),
             (None, None) => (
                 BasePose::of(&ur5::default_base()),
                 query.start.unwrap_or_else(|| self.arm.robot.home()),

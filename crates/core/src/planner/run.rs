@@ -71,20 +71,22 @@ impl Run<'_> {
                 arm: f.arm.clone(),
                 start: f.start,
             }],
-            (None, Stance::Region(region)) => base::proposals(region, &self.query.tree, push)
-                .into_iter()
-                .filter_map(|pose| {
-                    let arm = self.planner.placed_at(&pose.isometry());
-                    let free = PlanningScene::new(&arm, self.rest, Allowed::default());
-                    let start = match self.query.start {
-                        Some(q) => free.config_valid(&q).then_some(q),
-                        None => base::tucked_starts(&arm.robot)
-                            .into_iter()
-                            .find(|q| free.config_valid(q)),
-                    }?;
-                    Some(Placed { pose, arm, start })
-                })
-                .collect(),
+            (None, Stance::Region(region)) => {
+                base::proposals(region, &self.query.tree, push, self.planner.robot().reach())
+                    .into_iter()
+                    .filter_map(|pose| {
+                        let arm = self.planner.placed_at(&pose.isometry());
+                        let free = PlanningScene::new(&arm, self.rest, Allowed::default());
+                        let start = match self.query.start {
+                            Some(q) => free.config_valid(&q).then_some(q),
+                            None => base::tucked_starts(&arm.robot)
+                                .into_iter()
+                                .find(|q| free.config_valid(q)),
+                        }?;
+                        Some(Placed { pose, arm, start })
+                    })
+                    .collect()
+            }
             (None, Stance::Fixed(_)) => Vec::new(),
         }
     }
@@ -250,7 +252,7 @@ pub(super) fn reach_in_region(
     push: &Push,
 ) -> Result<(), Outcome> {
     let mut outcome = Outcome::Unreachable;
-    for pose in base::proposals(region, tree, push) {
+    for pose in base::proposals(region, tree, push, planner.robot().reach()) {
         let arm = planner.placed_at(&pose.isometry());
         match reach(&arm, tree, rest, push, &arm.robot.home()) {
             Ok(_) => return Ok(()),

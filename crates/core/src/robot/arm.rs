@@ -451,6 +451,23 @@ impl Arm {
         arms
     }
 
+    /// How far the tool can be from the second joint's origin (the
+    /// shoulder), bounded by the sum of the link offsets between them (m):
+    /// a measure of the arm's size (1.17 for the built-in UR5).
+    pub fn reach(&self) -> f64 {
+        let shoulder = self.links.iter().filter(|l| l.motion.is_some()).nth(1);
+        let mut length = 0.0;
+        let mut k = self.tool;
+        while let Some(p) = self.links[k].parent {
+            length += self.links[k].origin.translation.vector.norm();
+            if shoulder.is_some_and(|s| std::ptr::eq(s, &self.links[p])) {
+                break;
+            }
+            k = p;
+        }
+        length
+    }
+
     pub fn link_names(&self) -> impl Iterator<Item = &str> {
         self.links.iter().map(|l| l.name.as_str())
     }

@@ -118,10 +118,13 @@ pub fn describe(
     let mut pairs = disabled_pairs(robot, &chain, &geometry, samples, 0);
     for [a, b] in &config.disabled_pairs {
         for l in [a, b] {
-            if !robot.links.iter().any(|x| &x.name == l) {
+            let tool = config.tool.gripper && l == crate::robot::arm::GRIPPER_LINK;
+            if !tool && !robot.links.iter().any(|x| &x.name == l) {
                 return Err(fail(
                     &config_path,
-                    format!("disabled_pairs: link `{l}` is not in the URDF"),
+                    format!(
+                        "disabled_pairs: link `{l}` is not in the URDF (nor the tool's `gripper`)"
+                    ),
                 ));
             }
         }

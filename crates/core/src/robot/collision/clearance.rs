@@ -198,7 +198,7 @@ impl CollisionModel {
         let hinted = rates.limiting.get();
         if let Some((pair, rate)) = hinted {
             let d = pair.distance(&world, tree);
-            if d < min_clearance {
+            if d < pair.clearance(min_clearance) {
                 return None;
             }
             span = span.min(d / rate);
@@ -210,13 +210,12 @@ impl CollisionModel {
         // six comparisons settle most pairs before any distance.
         // Spans are kept squared here to spare a square root per pair.
         let mut pending: smallvec::SmallVec<[(f64, f64, Pair); 64]> = Default::default();
-        let min_clearance_squared = min_clearance * min_clearance;
         let mut consider = |lower_squared: f64, rate: f64, pair: Pair| {
             if hinted.is_some_and(|(h, _)| h == pair) {
                 // Measured exactly above; the span already allows it.
                 return;
             }
-            if lower_squared < min_clearance_squared {
+            if lower_squared < pair.clearance(min_clearance).powi(2) {
                 pending.push((-1.0, rate, pair));
             } else {
                 let lower_span_squared = lower_squared / (rate * rate);
@@ -280,7 +279,7 @@ impl CollisionModel {
             let Some(k) = next else { break };
             let (_, rate, pair) = pending.swap_remove(k);
             let d = pair.distance(&world, tree);
-            if d < min_clearance {
+            if d < pair.clearance(min_clearance) {
                 return None;
             }
             if d / rate < span {
@@ -302,6 +301,15 @@ enum Pair {
 }
 
 impl Pair {
+    /// The clearance this pair needs: `min_clearance`, or for two arm
+    /// shapes no more than [`super::SELF_CLEARANCE`].
+    fn clearance(self, min_clearance: f64) -> f64 {
+        match self {
+            Pair::Arm(..) => min_clearance.min(super::SELF_CLEARANCE),
+            _ => min_clearance,
+        }
+    }
+
     fn distance(self, world: &WorldShapes, tree: &TreeObstacles) -> f64 {
         match self {
             Pair::Branch(i, b) => distance(&world[i].0, &WorldShape::Capsule(tree.branches[b].1)),
@@ -402,8 +410,15 @@ mod tests {
                 limit(distance(shape, fixed), rate)?;
             }
         }
+        let self_clearance = min_clearance.min(crate::robot::collision::SELF_CLEARANCE);
         for (k, &(i, j)) in model.self_pairs.iter().enumerate() {
-            limit(distance(&world[i].0, &world[j].0), rates.self_pairs[k])?;
+            let (d, rate) = (distance(&world[i].0, &world[j].0), rates.self_pairs[k]);
+            if rate > 0.0 {
+                if d < self_clearance {
+                    return None;
+                }
+                span = span.min(d / rate);
+            }
         }
         Some(span)
     }

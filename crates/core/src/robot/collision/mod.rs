@@ -26,6 +26,13 @@ mod segment_box;
 pub use clearance::SweepRates;
 use placement::world_shape;
 
+/// Clearance two arm shapes of a self-collision pair need (m), however
+/// much the environment checks grow the shapes. The pairs a description
+/// leaves checked were sampled with shapes as they are (MoveIt pads no
+/// self-collision either), and real arms hold links a few millimetres apart
+/// in valid poses (the Panda's links 5 and 7 at home).
+pub const SELF_CLEARANCE: f64 = 0.001;
+
 /// Added to each lever arm ([`Arm::lever_arms`]): covers the margin that
 /// shapes are grown by in checks (half the edge resolution) (m).
 const LEVER_ARM_SLACK: f64 = 0.02;
@@ -458,7 +465,10 @@ impl CollisionModel {
     }
 
     fn world_shapes(&self, q: &[f64], margin: f64) -> WorldShapes {
-        let poses = self.robot.link_poses(q);
+        self.world_shapes_at(&self.robot.link_poses(q), margin)
+    }
+
+    fn world_shapes_at(&self, poses: &[Isometry3<f64>], margin: f64) -> WorldShapes {
         self.shapes
             .iter()
             .map(|slot| world_shape(&slot.shape, &poses[slot.link], margin))
@@ -480,7 +490,8 @@ impl CollisionModel {
         allowed: &Allowed,
         margin: f64,
     ) -> Option<Hit> {
-        let world = self.world_shapes(q, margin);
+        let poses = self.robot.link_poses(q);
+        let world = self.world_shapes_at(&poses, margin);
         let name = |i: usize| self.names[self.shapes[i].link].clone();
         for (i, (_, aabb)) in world.iter().enumerate() {
             if !self.shapes[i].base && aabb.min.z < GROUND_Z {
@@ -520,11 +531,20 @@ impl CollisionModel {
                 }
             }
         }
+        // Self-collision with at most SELF_CLEARANCE between the shapes.
+        let self_margin = SELF_CLEARANCE / 2.0;
+        let own;
+        let arm_world = if margin > self_margin && !self.self_pairs.is_empty() {
+            own = self.world_shapes_at(&poses, self_margin);
+            &own
+        } else {
+            &world
+        };
         for &(i, j) in &self.self_pairs {
-            if !world[i].1.overlaps(&world[j].1) {
+            if !arm_world[i].1.overlaps(&arm_world[j].1) {
                 continue;
             }
-            if intersects(&world[i].0, &world[j].0) {
+            if intersects(&arm_world[i].0, &arm_world[j].0) {
                 return Some(Hit::SelfCollision {
                     link: name(i),
                     other: name(j),
