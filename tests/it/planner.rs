@@ -20,12 +20,12 @@ use treemanip::sim::sampling::PushDistribution;
 use treemanip::sim::{Push, SimConfig, simulate};
 use treemanip::tree::{ScaParams, Tree, generate};
 
-fn models() -> ModelSet {
+pub(crate) fn models() -> ModelSet {
     ModelSet::load_dir(Path::new("models"), None, 1, false).expect("the committed models load")
 }
 
 /// The GNN contact policy and forward model of `set`.
-fn policy_and_forward(set: &ModelSet) -> (&ServedModel, &ServedModel) {
+pub(crate) fn policy_and_forward(set: &ModelSet) -> (&ServedModel, &ServedModel) {
     (
         set.get("policy_gnn").unwrap(),
         set.get("forward_gnn").unwrap(),
@@ -33,7 +33,7 @@ fn policy_and_forward(set: &ModelSet) -> (&ServedModel, &ServedModel) {
 }
 
 /// A random tree and the target made by a random paper-style push.
-fn episode(n: usize, seed: u64) -> (Tree, Vec<Point3<f64>>) {
+pub(crate) fn episode(n: usize, seed: u64) -> (Tree, Vec<Point3<f64>>) {
     let tree = generate(n, seed, &ScaParams::default()).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     loop {

@@ -5,9 +5,16 @@
 //! straight at constant tool orientation by an independent forward
 //! kinematics (Pinocchio), convertible one to one into ROS 2 messages.
 
+use std::time::Duration;
+
+use nalgebra::{Isometry3, Matrix4, Rotation3, UnitQuaternion, Vector3};
+use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
 use treemanip::robot::Arm;
 use treemanip::robot::catalog::{self, RobotSpec};
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
+use treemanip::robot::description::RobotDescription;
+use treemanip::robot::plan::APPROACH_OFFSET;
+use treemanip::robot::ros::JointTrajectory;
 use treemanip::robot::ur5;
 
 /// The shipped descriptions (`robots/*.toml`).
@@ -47,4 +54,255 @@ fn the_builtin_ur5s_reach_is_the_proposals_scale() {
     assert!((ur5 - 1.079_103_269_666_350_5).abs() < 1e-12, "{ur5}");
     let ur10 = shipped("ur10").reach();
     assert!(ur10 > 1.4 * ur5, "the UR10 is the larger arm: {ur10}");
+}
+
+/// An arm to plan with, and where its URDF is for the independent
+/// kinematics (`@EXAMPLE_ROBOT_DATA@` and `@PYBULLET_DATA@` filled in by
+/// the Python side).
+struct Case {
+    arm: Arm,
+    urdf: String,
+}
+
+/// The shipped arms, and pybullet's Franka Panda URDF (meshes fitted now,
+/// self-collision pairs sampled now) when pybullet is installed.
+fn cases() -> Vec<Case> {
+    let mut out: Vec<Case> = SHIPPED
+        .iter()
+        .map(|name| {
+            let text = std::fs::read_to_string(format!("robots/{name}.toml")).unwrap();
+            let d = RobotDescription::from_toml_str(&text, std::path::Path::new(name)).unwrap();
+            Case {
+                arm: shipped(name),
+                urdf: d.source.urdf,
+            }
+        })
+        .collect();
+    if crate::common::python_has("pybullet_data") {
+        let out_dir = crate::common::python_json(
+            "import pybullet_data, json; print(json.dumps(pybullet_data.getDataPath()))",
+            &serde_json::Value::Null,
+        );
+        let data: String = serde_json::from_slice(&out_dir).unwrap();
+        let urdf = format!("{data}/franka_panda/panda.urdf");
+        // The raw URDF and a configuration: the chain's tip and where the
+        // ⊔ gripper sits (past the closed fingers); all else defaults.
+        let config = crate::common::temp_dir("pybullet-panda").join("panda.toml");
+        let mount = "[tool]\nmount = { xyz = [0.0, 0.0, 0.11], rpy = [0.0, 0.0, 0.0] }\n";
+        std::fs::write(
+            &config,
+            format!(
+                "name = \"panda_pybullet\"\nurdf = \"{urdf}\"\ntip_link = \"panda_hand\"\n{mount}"
+            ),
+        )
+        .unwrap();
+        let spec: RobotSpec = format!("panda_pybullet={}", config.display())
+            .parse()
+            .unwrap();
+        out.push(Case {
+            arm: catalog::load(&spec, &[]).expect("pybullet's Panda loads from its URDF"),
+            urdf,
+        });
+    }
+    out
+}
+
+/// Every arm plans pushes on random trees (model strategy, base region),
+/// and each controller trajectory stays within that arm's position,
+/// velocity and acceleration limits by finite differences of its positions
+/// alone, starts and ends at rest at the start, keeps the approach free of
+/// the tree, pushes in a straight line at constant tool orientation by
+/// Pinocchio's forward kinematics of the original URDF, and converts one to
+/// one into a ROS 2 `JointTrajectory` serialised to CDR.
+#[test]
+fn every_arm_plans_trajectories_its_controller_can_run() {
+    let set = crate::planner::models();
+    let (policy, forward) = crate::planner::policy_and_forward(&set);
+    let mut pin_cases = Vec::new();
+    for case in cases() {
+        let name = case.arm.name().to_owned();
+        let planner = Planner::new(CollisionModel::new(
+            case.arm.clone().with_base(ur5::default_base()),
+        ));
+        let mut planned = 0;
+        let mut outcomes = Vec::new();
+        for seed in 1..=6 {
+            let (tree, targets) = crate::planner::episode(12, seed);
+            let mut q = Query::new(tree, targets);
+            q.strategy = Strategy::Model;
+            q.budget = Duration::from_secs(3);
+            q.stance = Stance::Region(treemanip::eval::plan::evaluation_region());
+            let plan = planner.plan(&q, policy, Some(forward)).unwrap();
+            outcomes.extend(plan.attempts.iter().map(|a| a.outcome));
+            let Some(p) = &plan.plan else { continue };
+            let e = p.execution.as_ref().expect("an execution");
+            check_limits(&name, planner.robot(), &e.joint_trajectory);
+            check_approach(&name, planner.robot(), &plan, &q);
+            let json = serde_json::to_value(&e.joint_trajectory).unwrap();
+            if crate::common::python_has("rosbags") {
+                crate::robot_ros::assert_ros2_round_trip(&json);
+            }
+            let points = &e.joint_trajectory.points[e.push_start_point..=e.push_end_point];
+            pin_cases.push((
+                name.clone(),
+                plan.base.isometry(),
+                planner.robot().tool_in_tip(),
+                p.push.norm(),
+                serde_json::json!({
+                    "urdf": case.urdf,
+                    "base_link": planner.robot().base_link(),
+                    "tip_link": planner.robot().tip_link(),
+                    "joint_names": e.joint_trajectory.joint_names,
+                    "configurations": points.iter().map(|p| &p.positions).collect::<Vec<_>>(),
+                }),
+            ));
+            planned += 1;
+            if planned == 2 {
+                break;
+            }
+        }
+        assert!(
+            planned >= 1,
+            "{name}: nothing planned on 6 trees (home {:?}): {outcomes:?}",
+            &planner.robot().home()[..]
+        );
+    }
+    if !crate::common::python_has("pinocchio") {
+        return;
+    }
+    let input: Vec<_> = pin_cases.iter().map(|c| c.4.clone()).collect();
+    let out = crate::common::python_json(PIN_TIP_POSES, &serde_json::Value::Array(input));
+    let tips: Vec<Vec<[[f64; 4]; 4]>> = serde_json::from_slice(&out).unwrap();
+    for ((name, base, tool_in_tip, push, _), tips) in pin_cases.iter().zip(tips) {
+        let tool: Vec<Isometry3<f64>> = tips
+            .iter()
+            .map(|m| {
+                let m = Matrix4::from_fn(|r, c| m[r][c]);
+                let rotation = Rotation3::from_matrix_unchecked(m.fixed_view::<3, 3>(0, 0).into());
+                let t = Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]);
+                base * Isometry3::from_parts(
+                    t.into(),
+                    UnitQuaternion::from_rotation_matrix(&rotation),
+                ) * tool_in_tip
+            })
+            .collect();
+        let (first, last) = (tool[0], *tool.last().unwrap());
+        let travel = last.translation.vector - first.translation.vector;
+        assert!(
+            (travel.norm() - (push + APPROACH_OFFSET)).abs() < 1e-5,
+            "{name}: the push travels {} m",
+            travel.norm()
+        );
+        for pose in &tool {
+            assert!(
+                pose.rotation.angle_to(&first.rotation) < 1e-5,
+                "{name}: the tool turns"
+            );
+            let offset = pose.translation.vector - first.translation.vector;
+            let across = offset - travel.normalize() * offset.dot(&travel.normalize());
+            assert!(
+                across.norm() < 1e-5,
+                "{name}: the push leaves its line by {}",
+                across.norm()
+            );
+        }
+    }
+}
+
+/// Tip poses (base link frame) of each case's configurations by Pinocchio.
+const PIN_TIP_POSES: &str = r#"
+import json, os, sys, sysconfig
+import numpy as np, pinocchio as pin
+cases = json.load(sys.stdin)
+erd = os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share', 'example-robot-data', 'robots')
+try:
+    import pybullet_data
+    pbd = pybullet_data.getDataPath()
+except ImportError:
+    pbd = '@PYBULLET_DATA@'
+out = []
+for case in cases:
+    path = case['urdf'].replace('@EXAMPLE_ROBOT_DATA@', erd).replace('@PYBULLET_DATA@', pbd)
+    model = pin.buildModelFromUrdf(path)
+    data = model.createData()
+    base, tip = model.getFrameId(case['base_link']), model.getFrameId(case['tip_link'])
+    poses = []
+    for q in case['configurations']:
+        x = pin.neutral(model)
+        for name, v in zip(case['joint_names'], q):
+            joint = model.joints[model.getJointId(name)]
+            if joint.nq == 2:
+                x[joint.idx_q], x[joint.idx_q + 1] = np.cos(v), np.sin(v)
+            else:
+                x[joint.idx_q] = v
+        pin.framesForwardKinematics(model, data, x)
+        poses.append((data.oMf[base].inverse() * data.oMf[tip]).homogeneous.tolist())
+    out.append(poses)
+print(json.dumps(out))
+"#;
+
+/// Positions within limits; velocities and accelerations within limits by
+/// finite differences of the positions alone; at rest at both ends.
+fn check_limits(name: &str, arm: &Arm, trajectory: &JointTrajectory) {
+    let points = &trajectory.points;
+    let t: Vec<f64> = points.iter().map(|p| p.time_from_start.as_secs()).collect();
+    assert!(t.windows(2).all(|w| w[1] > w[0]), "{name}: time increases");
+    assert_eq!(
+        trajectory.joint_names,
+        arm.joint_names().collect::<Vec<_>>()
+    );
+    let (vmax, amax) = (arm.velocity_limits(), arm.acceleration_limits());
+    for p in [&points[0], points.last().unwrap()] {
+        assert!(
+            p.velocities.iter().all(|v| v.abs() < 1e-9),
+            "{name}: not at rest"
+        );
+    }
+    for p in points {
+        assert!(
+            arm.within_limits(&p.positions),
+            "{name}: {:?} outside the limits",
+            p.positions
+        );
+    }
+    for k in 1..points.len() - 1 {
+        let (h1, h2) = (t[k] - t[k - 1], t[k + 1] - t[k]);
+        for i in 0..arm.dof() {
+            let (a, b, c) = (
+                points[k - 1].positions[i],
+                points[k].positions[i],
+                points[k + 1].positions[i],
+            );
+            let v = (b - a) / h1;
+            assert!(
+                v.abs() <= vmax[i] * (1.0 + 1e-6),
+                "{name}: joint {i} at {v} rad/s"
+            );
+            let acc = ((c - b) / h2 - (b - a) / h1) * 2.0 / (h1 + h2);
+            assert!(
+                acc.abs() <= amax[i] * (1.0 + 1e-3),
+                "{name}: joint {i} at {acc} rad/s²"
+            );
+        }
+    }
+}
+
+/// The approach (every point up to the push) is free of the tree.
+fn check_approach(name: &str, arm: &Arm, plan: &Plan, query: &Query) {
+    let p = plan.plan.as_ref().unwrap();
+    let e = p.execution.as_ref().unwrap();
+    let model = CollisionModel::new(arm.clone().with_base(plan.base.isometry()));
+    let rest = TreeObstacles::new(&query.tree);
+    let near = Allowed {
+        gripper_branches: std::iter::once(p.node)
+            .chain(query.tree.children(p.node).iter().copied())
+            .collect(),
+    };
+    for point in &e.joint_trajectory.points[..=e.push_start_point] {
+        assert_eq!(
+            model.check(&point.positions, &rest, &near),
+            None,
+            "{name}: the approach collides"
+        );
+    }
 }

@@ -78,6 +78,16 @@ fn the_json_is_a_ros2_joint_trajectory() {
         return;
     }
     let json = serde_json::to_value(trajectory()).unwrap();
+    let out = assert_ros2_round_trip(&json);
+    let answer = String::from_utf8_lossy(&out);
+    let points: usize = answer.split_whitespace().nth(1).unwrap().parse().unwrap();
+    assert_eq!(points, trajectory().points.len());
+}
+
+/// Converts a `JointTrajectory` as JSON into `trajectory_msgs/msg/JointTrajectory`
+/// with `rosbags`, serialises it to CDR and back, and checks every field
+/// survives; returns the script's output (`CDR-bytes points`).
+pub(crate) fn assert_ros2_round_trip(json: &serde_json::Value) -> Vec<u8> {
     let script = r#"
 import json, sys, numpy as np
 from rosbags.typesys import Stores, get_typestore
@@ -104,8 +114,5 @@ for p, q in zip(back.points, data['points']):
     assert (p.time_from_start.sec, p.time_from_start.nanosec) == (q['time_from_start']['sec'], q['time_from_start']['nanosec'])
 print(len(cdr), len(back.points))
 "#;
-    let out = crate::common::python_json(script, &json);
-    let answer = String::from_utf8_lossy(&out);
-    let points: usize = answer.split_whitespace().nth(1).unwrap().parse().unwrap();
-    assert_eq!(points, trajectory().points.len());
+    crate::common::python_json(script, json)
 }

@@ -331,6 +331,18 @@ impl Arm {
         self.home
     }
 
+    /// This arm with home `home` (within the joints' limits).
+    pub fn with_home(mut self, home: JointVector) -> Result<Self, String> {
+        if !self.within_limits(&home) {
+            return Err(format!(
+                "home {:?} is not within the joints' limits",
+                &home[..]
+            ));
+        }
+        self.home = home;
+        Ok(self)
+    }
+
     /// Whether `q` has one finite value per joint, each within its limits.
     pub fn within_limits(&self, q: &[f64]) -> bool {
         q.len() == self.dof()
@@ -568,8 +580,12 @@ impl Arm {
     }
 
     fn solve_from(&self, goal: &Isometry3<f64>, start: &[f64]) -> Option<JointVector> {
+        // Tight: pushes follow a straight line at constant orientation
+        // through these solutions (a few more iterations near convergence).
         let options = IkOptions {
             restarts: 1,
+            position_tolerance: 1e-7,
+            orientation_tolerance: 1e-6,
             ..IkOptions::default()
         };
         solve(&self.chain, goal, start, &options).map(|q| JointVector::from_slice(&q))

@@ -6,8 +6,12 @@ use std::path::{Path, PathBuf};
 
 use super::arm::Arm;
 use super::chain::parse_urdf;
+use super::collision::{Allowed, CollisionModel, TreeObstacles};
 use super::description::{DescriptionError, RobotConfig, RobotDescription, SELF_COLLISION_SAMPLES};
-use super::import::{Blame, describe};
+use super::ik_numeric::random_configuration;
+use super::import::{Blame, describe, import};
+use super::joint_vector::JointVector;
+use super::rrt::distance;
 
 /// The built-in arm's name.
 pub const BUILT_IN: &str = "ur5";
@@ -74,10 +78,11 @@ pub fn parse_list(text: &str) -> Result<Vec<RobotSpec>, String> {
         .collect()
 }
 
-/// The description `spec` names: an imported description (`.toml`; `tip`
-/// and `base` must then be absent, the chain is fixed at import), or a
-/// URDF described now (its meshes fitted, its self-collision pairs sampled)
-/// with the documented defaults ([`super::description`]).
+/// The description `spec` names: an imported description (`.toml`), a
+/// robot configuration (`.toml` naming its URDF, imported now), or a URDF
+/// described now (its meshes fitted, its self-collision pairs sampled)
+/// with the documented defaults ([`super::description`]). `tip` and `base`
+/// apply to a bare URDF only: a TOML file gives its own chain.
 pub fn load_description(
     spec: &RobotSpec,
     packages: &[PathBuf],
@@ -97,7 +102,15 @@ pub fn load_description(
                     .to_owned(),
             ));
         }
-        RobotDescription::from_toml_str(&text, &spec.path)?
+        let is_config = toml::from_str::<toml::Table>(&text)
+            .is_ok_and(|t| t.contains_key("urdf") && !t.contains_key("source"));
+        if is_config {
+            // A configuration naming its URDF: imported now.
+            let command = format!("--robot {}={}", spec.name, spec.path.display());
+            import(&spec.path, packages, &command)?
+        } else {
+            RobotDescription::from_toml_str(&text, &spec.path)?
+        }
     } else {
         let robot = parse_urdf(&text).map_err(|e| fail(&spec.path, e.to_string()))?;
         let config = RobotConfig {
@@ -129,13 +142,57 @@ pub fn load_description(
     Ok(description)
 }
 
-/// The arm `spec` names (see [`load_description`]).
+/// The arm `spec` names (see [`load_description`]). A home that collides
+/// with the arm itself or the ground at the default mount (a bare URDF's default, zero clamped
+/// into the limits, often does) is replaced by [`free_home`]'s.
 pub fn load(spec: &RobotSpec, packages: &[PathBuf]) -> Result<Arm, DescriptionError> {
     let description = load_description(spec, packages)?;
-    Arm::from_description(&description).map_err(|message| DescriptionError {
+    let fail = |message: String| DescriptionError {
         file: spec.path.clone(),
         message,
-    })
+    };
+    let arm = Arm::from_description(&description).map_err(fail)?;
+    let home = free_home(&arm).ok_or_else(|| {
+        fail(
+            "no collision-free configuration found for a home (give one in a robot configuration)"
+                .to_owned(),
+        )
+    })?;
+    arm.with_home(home).map_err(fail)
+}
+
+/// Random configurations tried for a bare URDF's home.
+const HOME_SAMPLES: usize = 500;
+
+/// A collision-free home for `arm` at the default mount (10 cm above the
+/// ground, [`super::ur5::default_base`]; its links clear of the ground and
+/// each other): its own home, else zero
+/// clamped into the limits, else the middle of the limits, else the free
+/// random configuration nearest the middle.
+pub fn free_home(arm: &Arm) -> Option<JointVector> {
+    use rand::SeedableRng;
+    let model = CollisionModel::new(arm.clone().with_base(super::ur5::default_base()));
+    let empty = TreeObstacles::empty();
+    let free = |q: &JointVector| model.check(q, &empty, &Allowed::default()).is_none();
+    let limits = arm.limits();
+    let middle = JointVector::from_fn(arm.dof(), |i| {
+        let (lo, hi) = limits[i];
+        if lo.is_finite() && hi.is_finite() {
+            (lo + hi) / 2.0
+        } else {
+            0.0
+        }
+    });
+    let zero = JointVector::from_fn(arm.dof(), |i| 0f64.clamp(limits[i].0, limits[i].1));
+    if let Some(q) = [arm.home(), zero, middle].into_iter().find(|q| free(q)) {
+        return Some(q);
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let mut samples: Vec<JointVector> = (0..HOME_SAMPLES)
+        .map(|_| JointVector::from_slice(&random_configuration(arm.chain(), &mut rng)))
+        .collect();
+    samples.sort_by(|a, b| distance(a, &middle).total_cmp(&distance(b, &middle)));
+    samples.into_iter().find(|q| free(q))
 }
 
 /// Where shipped descriptions live, relative to the working directory.
