@@ -35,6 +35,7 @@ mod server_basics;
 mod server_faults;
 mod server_identify;
 mod server_models;
+mod server_robots;
 mod server_tasks;
 mod sim_convergence;
 mod sim_loads;
