@@ -8,6 +8,8 @@
 //!
 //!     cargo bench --bench plan_latency
 //!     PLAN_EPISODES=4 cargo bench --bench plan_latency     (per size)
+//!     PLAN_ROBOT=panda cargo bench --bench plan_latency    (a shipped arm,
+//!                                  robots/panda.toml, as the default robot)
 //!
 //! Prints p50/p95/max client-side latency and the planned share; asserts
 //! nothing. Run with nothing else busy on the machine.
@@ -31,14 +33,25 @@ fn main() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(8);
-    let server = server::Server::start(&[
-        "--models-dir",
-        concat!(env!("CARGO_MANIFEST_DIR"), "/models"),
-    ]);
+    let robot = std::env::var("PLAN_ROBOT").ok();
+    let mut args = vec![
+        "--models-dir".to_owned(),
+        concat!(env!("CARGO_MANIFEST_DIR"), "/models").to_owned(),
+    ];
+    if let Some(name) = &robot {
+        args.push("--robot".to_owned());
+        args.push(format!(
+            "{name}={}/robots/{name}.toml",
+            env!("CARGO_MANIFEST_DIR")
+        ));
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let server = server::Server::start(&args);
     let (_, ready) = server.get("/readyz");
     let cpu = treemanip::nn::train::checkpoint::cpu_model();
     println!(
-        "/v1/plan latency, backend {}, CPU {cpu}, {} cores; {per_size} test episodes per size, N = 10, 15, 20, 25, 30, one request at a time",
+        "/v1/plan latency, robot {}, backend {}, CPU {cpu}, {} cores; {per_size} test episodes per size, N = 10, 15, 20, 25, 30, one request at a time",
+        robot.as_deref().unwrap_or("ur5 (built in)"),
         ready["backend"],
         std::thread::available_parallelism().map_or(1, |n| n.get())
     );

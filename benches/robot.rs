@@ -101,18 +101,7 @@ fn main() {
     // The fence scene of tests/robot_rrt.rs.
     let start = Config::from([0.0, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0]);
     let goal = Config::from([1.3, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0]);
-    let base = ur5::default_base().translation.vector;
-    let tool = |q: &Config| model.robot.tool_pose(q).translation.vector - base;
-    let (a, b) = (tool(&start), tool(&goal));
-    let bearing = (a.y.atan2(a.x) + b.y.atan2(b.x)) / 2.0;
-    let poles: Vec<_> = (0..13)
-        .map(|k| {
-            let r = 0.3 + 0.05 * k as f64;
-            let foot = Point3::new(base.x + r * bearing.cos(), base.y + r * bearing.sin(), 0.0);
-            (k, foot, foot + Vector3::z() * 0.5, 0.02)
-        })
-        .collect();
-    let fence = TreeObstacles::from_capsules(&poles);
+    let fence = fence_between(&model, &start, &goal);
     let scene = PlanningScene::new(&model, &fence, Allowed::default());
     let runs = 40;
     println!("\nfence scene, {runs} seeds each (start → goal through a 0.5 m fence)");
@@ -234,6 +223,7 @@ fn main() {
         percentile(&mut times, 0.95),
         percentile(&mut costs, 0.5)
     );
+    fence_per_arm(runs);
 }
 
 /// The scene, counting the checks RRT* asks for.
@@ -279,5 +269,69 @@ impl MotionValidator for Counting<'_> {
 
     fn joint_limits(&self) -> Vec<(f64, f64)> {
         self.scene.joint_limits()
+    }
+}
+
+/// A fence of 13 poles (2 cm radius, 0.5 m tall) on the ray from the arm's
+/// base halfway between where the tool is at `start` and at `goal`, from
+/// 0.3 to 0.9 m out: the way between them goes over or around it.
+fn fence_between(model: &CollisionModel, start: &Config, goal: &Config) -> TreeObstacles {
+    let base = model.robot.base.translation.vector;
+    let tool = |q: &Config| model.robot.tool_pose(q).translation.vector - base;
+    let (a, b) = (tool(start), tool(goal));
+    let bearing = (a.y.atan2(a.x) + b.y.atan2(b.x)) / 2.0;
+    let poles: Vec<_> = (0..13)
+        .map(|k| {
+            let r = 0.3 + 0.05 * k as f64;
+            let foot = Point3::new(base.x + r * bearing.cos(), base.y + r * bearing.sin(), 0.0);
+            (k, foot, foot + Vector3::z() * 0.5, 0.02)
+        })
+        .collect();
+    TreeObstacles::from_capsules(&poles)
+}
+
+/// The fence query for every shipped arm: from its home to home with the
+/// first joint turned by 1.3 rad, the fence between the two (lazy RRT*,
+/// the planner's settings).
+fn fence_per_arm(runs: u64) {
+    println!(
+        "\nfence query per shipped arm (home → home turned 1.3 rad about joint 1), {runs} seeds each"
+    );
+    for name in ["ur5", "ur10", "panda", "iiwa"] {
+        let spec = treemanip::robot::catalog::RobotSpec {
+            name: name.to_owned(),
+            path: format!("robots/{name}.toml").into(),
+            tip: None,
+            base: None,
+        };
+        let arm = treemanip::robot::catalog::load(&spec, &[]).expect("a shipped arm loads");
+        let model = CollisionModel::new(arm.with_base(ur5::default_base()));
+        let start = model.robot.home();
+        let mut goal = start;
+        let (lo, hi) = model.robot.limits()[0];
+        goal[0] = (goal[0] + 1.3).clamp(lo, hi);
+        let fence = fence_between(&model, &start, &goal);
+        let scene = PlanningScene::new(&model, &fence, Allowed::default());
+        let (mut times, mut costs) = (Vec::new(), Vec::new());
+        for seed in 0..runs {
+            let options = RrtStarOptions {
+                seed,
+                time_budget: Some(Duration::from_secs(2)),
+                ..RrtStarOptions::default()
+            };
+            let t = Instant::now();
+            if let Ok(p) = rrt_star(&start, &[goal], &scene, &options) {
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+                costs.push(p.cost);
+            }
+        }
+        println!(
+            "  {name:<6} ({} joints) {}/{runs} solved, median {:.2} ms, p95 {:.1} ms, median cost {:.2} rad",
+            model.robot.dof(),
+            times.len(),
+            percentile(&mut times, 0.5),
+            percentile(&mut times, 0.95),
+            percentile(&mut costs, 0.5)
+        );
     }
 }
