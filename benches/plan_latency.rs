@@ -112,7 +112,11 @@ fn main() {
                 let started = Instant::now();
                 let (status, answer) = server.json("POST", "/v1/plan", &body);
                 ms.push(started.elapsed().as_secs_f64() * 1e3);
-                assert_eq!(status, 200, "{answer}");
+                // A start the tree collides with (another arm at the fixed
+                // base) answers 422 and counts as not planned.
+                let start_collides =
+                    status == 422 && answer["error"]["details"]["field"] == "robot.start";
+                assert!(status == 200 || start_collides, "{answer}");
                 planned += usize::from(answer["status"] == "planned");
             }
             ms.sort_by(f64::total_cmp);

@@ -312,7 +312,12 @@ fn fence_per_arm(runs: u64) {
         goal[0] = (goal[0] + 1.3).clamp(lo, hi);
         let fence = fence_between(&model, &start, &goal);
         let scene = PlanningScene::new(&model, &fence, Allowed::default());
+        if !(scene.config_valid(&start) && scene.config_valid(&goal)) {
+            println!("  {name:<6} start or goal collides with the fence: no query");
+            continue;
+        }
         let (mut times, mut costs) = (Vec::new(), Vec::new());
+        let mut failure = None;
         for seed in 0..runs {
             let options = RrtStarOptions {
                 seed,
@@ -320,10 +325,17 @@ fn fence_per_arm(runs: u64) {
                 ..RrtStarOptions::default()
             };
             let t = Instant::now();
-            if let Ok(p) = rrt_star(&start, &[goal], &scene, &options) {
-                times.push(t.elapsed().as_secs_f64() * 1e3);
-                costs.push(p.cost);
+            match rrt_star(&start, &[goal], &scene, &options) {
+                Ok(p) => {
+                    times.push(t.elapsed().as_secs_f64() * 1e3);
+                    costs.push(p.cost);
+                }
+                Err(e) => failure = Some(e),
             }
+        }
+        if times.is_empty() {
+            println!("  {name:<6} 0/{runs} solved: {failure:?}");
+            continue;
         }
         println!(
             "  {name:<6} ({} joints) {}/{runs} solved, median {:.2} ms, p95 {:.1} ms, median cost {:.2} rad",

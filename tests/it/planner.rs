@@ -62,7 +62,7 @@ fn near_contact(tree: &Tree, node: usize) -> Allowed {
 /// UR5 model the planner uses).
 fn check_execution(plan: &Plan, query: &Query) {
     use treemanip::robot::chain::Chain;
-    use treemanip::robot::ur5::{MAX_ACCELERATION, MAX_VELOCITY, URDF};
+    use treemanip::robot::ur5::URDF;
     let Some(p) = &plan.plan else { return };
     let e = p
         .execution
@@ -73,37 +73,7 @@ fn check_execution(plan: &Plan, query: &Query) {
     assert!(t.windows(2).all(|w| w[1] > w[0]), "time increases");
     assert_eq!(points[0].positions, plan.start.to_vec());
     assert!(points[0].velocities.iter().all(|v| *v == 0.0));
-    for k in 1..points.len() - 1 {
-        let (h1, h2) = (t[k] - t[k - 1], t[k + 1] - t[k]);
-        for i in 0..6 {
-            let (a, b, c) = (
-                points[k - 1].positions[i],
-                points[k].positions[i],
-                points[k + 1].positions[i],
-            );
-            let v = (b - a) / h1;
-            assert!(
-                v.abs() <= MAX_VELOCITY[i] * (1.0 + 1e-6),
-                "joint {i}: {v} rad/s at {k}"
-            );
-            let acc = ((c - b) / h2 - (b - a) / h1) * 2.0 / (h1 + h2);
-            assert!(
-                acc.abs() <= MAX_ACCELERATION[i] * (1.0 + 1e-3),
-                "joint {i}: {acc} rad/s² at {k}"
-            );
-            // Velocity-continuous: the reported velocities change no faster
-            // than the acceleration limit allows.
-            let dv = points[k + 1].velocities[i] - points[k].velocities[i];
-            assert!(
-                dv.abs() <= MAX_ACCELERATION[i] * h2 * 1.05 + 1e-6,
-                "velocity jumps at {k} (push {}..{}): joint {i} by {dv} in {h2} s, {:?} -> {:?}",
-                e.push_start_point,
-                e.push_end_point,
-                points[k].velocities,
-                points[k + 1].velocities
-            );
-        }
-    }
+    crate::robot_arms::check_limits("ur5", &Arm::default(), &e.joint_trajectory);
     let chain = Chain::from_urdf_str(URDF, Some("base_link"), Some("tool")).unwrap();
     let base = plan.base.isometry();
     let tool = |k: usize| base * chain.tip_pose(&points[k].positions);

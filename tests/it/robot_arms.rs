@@ -242,8 +242,9 @@ print(json.dumps(out))
 "#;
 
 /// Positions within limits; velocities and accelerations within limits by
-/// finite differences of the positions alone; at rest at both ends.
-fn check_limits(name: &str, arm: &Arm, trajectory: &JointTrajectory) {
+/// finite differences of the positions alone; the reported velocities
+/// continuous; at rest at both ends.
+pub(crate) fn check_limits(name: &str, arm: &Arm, trajectory: &JointTrajectory) {
     let points = &trajectory.points;
     let t: Vec<f64> = points.iter().map(|p| p.time_from_start.as_secs()).collect();
     assert!(t.windows(2).all(|w| w[1] > w[0]), "{name}: time increases");
@@ -282,6 +283,13 @@ fn check_limits(name: &str, arm: &Arm, trajectory: &JointTrajectory) {
             assert!(
                 acc.abs() <= amax[i] * (1.0 + 1e-3),
                 "{name}: joint {i} at {acc} rad/s²"
+            );
+            // Velocity-continuous: the reported velocities change no
+            // faster than the acceleration limit allows.
+            let dv = points[k + 1].velocities[i] - points[k].velocities[i];
+            assert!(
+                dv.abs() <= amax[i] * h2 * 1.05 + 1e-6,
+                "{name}: velocity jumps at {k}: joint {i} by {dv} in {h2} s"
             );
         }
     }

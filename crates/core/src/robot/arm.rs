@@ -28,6 +28,8 @@ use super::link_geometry::LinkShape;
 use super::ur_kinematics::UrKinematics;
 use super::ur5::{GRIPPER_BOXES, TOOL_OFFSET};
 
+mod reach;
+
 /// World poses of the links, in the arm's link order: on the stack for
 /// arms of up to 24 links, since the collision checker computes them for
 /// every pose it checks.
@@ -429,57 +431,6 @@ impl Arm {
         (0..self.dof()).all(|j| !self.moved_by(link, j))
     }
 
-    /// Upper bounds, in any configuration, on the distance from each
-    /// joint's axis to any point of a shape it moves (m, padded by
-    /// `slack`): the sum of the link offsets from the joint's frame down
-    /// to the shape's link (plus a prismatic joint's travel) and the
-    /// shape's own reach from its link's origin. The conservative-advancement
-    /// edge check never lets a joint move a point faster than this.
-    pub fn lever_arms(&self, slack: f64) -> JointVector {
-        let mut arms = JointVector::zeros(self.dof());
-        for (l, link) in self.links.iter().enumerate() {
-            let reach = link.shapes.iter().map(LinkShape::reach).fold(0.0, f64::max);
-            if link.shapes.is_empty() && l != self.tool {
-                continue;
-            }
-            // Walk up from the link, adding each offset, to every joint.
-            let mut offset = reach;
-            let mut k = l;
-            loop {
-                if let Some(m) = &self.links[k].motion {
-                    arms[m.variable] = arms[m.variable].max(offset + slack);
-                    if m.prismatic {
-                        let j = &self.joints[m.variable];
-                        offset += j.lower.abs().max(j.upper.abs()) * m.multiplier.abs();
-                    }
-                }
-                offset += self.links[k].origin.translation.vector.norm();
-                match self.links[k].parent {
-                    Some(p) => k = p,
-                    None => break,
-                }
-            }
-        }
-        arms
-    }
-
-    /// How far the tool can be from the second joint's origin (the
-    /// shoulder), bounded by the sum of the link offsets between them (m):
-    /// a measure of the arm's size (1.17 for the built-in UR5).
-    pub fn reach(&self) -> f64 {
-        let shoulder = self.links.iter().filter(|l| l.motion.is_some()).nth(1);
-        let mut length = 0.0;
-        let mut k = self.tool;
-        while let Some(p) = self.links[k].parent {
-            length += self.links[k].origin.translation.vector.norm();
-            if shoulder.is_some_and(|s| std::ptr::eq(s, &self.links[p])) {
-                break;
-            }
-            k = p;
-        }
-        length
-    }
-
     pub fn link_names(&self) -> impl Iterator<Item = &str> {
         self.links.iter().map(|l| l.name.as_str())
     }
@@ -543,6 +494,7 @@ impl Arm {
                     .map(|q| JointVector::from_slice(q))
                     .collect()
             }
+            Solver::Numeric if !self.within_reach(&goal) => Vec::new(),
             Solver::Numeric => {
                 let mut rng = ChaCha8Rng::seed_from_u64(0x1c);
                 let mut found: Vec<JointVector> = Vec::new();

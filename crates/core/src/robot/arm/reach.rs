@@ -1,0 +1,96 @@
+//! How far an arm reaches: bounds the edge checks, the base proposals and
+//! the numerical IK rely on, from the chain's link offsets.
+
+use nalgebra::Isometry3;
+
+use super::Arm;
+use crate::robot::joint_vector::JointVector;
+use crate::robot::link_geometry::LinkShape;
+
+impl Arm {
+    /// Upper bounds, in any configuration, on the distance from each
+    /// joint's axis to any point of a shape it moves (m, padded by
+    /// `slack`): the sum of the link offsets from the joint's frame down
+    /// to the shape's link (plus a prismatic joint's travel) and the
+    /// shape's own reach from its link's origin. The conservative-advancement
+    /// edge check never lets a joint move a point faster than this.
+    pub fn lever_arms(&self, slack: f64) -> JointVector {
+        let mut arms = JointVector::zeros(self.dof());
+        for (l, link) in self.links.iter().enumerate() {
+            let reach = link.shapes.iter().map(LinkShape::reach).fold(0.0, f64::max);
+            if link.shapes.is_empty() && l != self.tool {
+                continue;
+            }
+            // Walk up from the link, adding each offset, to every joint.
+            let mut offset = reach;
+            let mut k = l;
+            loop {
+                if let Some(m) = &self.links[k].motion {
+                    arms[m.variable] = arms[m.variable].max(offset + slack);
+                    if m.prismatic {
+                        let j = &self.joints[m.variable];
+                        offset += j.lower.abs().max(j.upper.abs()) * m.multiplier.abs();
+                    }
+                }
+                offset += self.links[k].origin.translation.vector.norm();
+                match self.links[k].parent {
+                    Some(p) => k = p,
+                    None => break,
+                }
+            }
+        }
+        arms
+    }
+
+    /// How far the tool can be from the second joint's origin (the
+    /// shoulder), bounded by the sum of the link offsets between them (m):
+    /// a measure of the arm's size (1.17 for the built-in UR5).
+    pub fn reach(&self) -> f64 {
+        let shoulder = self.links.iter().filter(|l| l.motion.is_some()).nth(1);
+        let mut length = 0.0;
+        let mut k = self.tool;
+        while let Some(p) = self.links[k].parent {
+            length += self.links[k].origin.translation.vector.norm();
+            if shoulder.is_some_and(|s| std::ptr::eq(s, &self.links[p])) {
+                break;
+            }
+            k = p;
+        }
+        length
+    }
+
+    /// Whether the tip pose `goal` (chain base frame) is within the chain's
+    /// reach: its tool frame no farther from the first joint's origin (a
+    /// point no joint moves) than the sum of the link offsets between them.
+    /// Spares the numerical solver its restarts on poses out of reach.
+    pub(super) fn within_reach(&self, goal: &Isometry3<f64>) -> bool {
+        let Some(first) = self.links.iter().position(|l| l.motion.is_some()) else {
+            return true;
+        };
+        let mut bound = 0.0;
+        let mut origin = Isometry3::identity();
+        let mut k = self.tool;
+        while let Some(p) = self.links[k].parent {
+            if k == first {
+                origin = self.links[k].origin;
+                break;
+            }
+            bound += self.links[k].origin.translation.vector.norm();
+            if let Some(m) = &self.links[k].motion
+                && m.prismatic
+            {
+                let j = &self.joints[m.variable];
+                bound += j.lower.abs().max(j.upper.abs());
+            }
+            k = p;
+        }
+        // The first joint's frame in the chain base frame (links before it
+        // do not move).
+        while let Some(p) = self.links[k].parent {
+            k = p;
+            origin = self.links[k].origin * origin;
+        }
+        let tool = goal * self.tool_in_tip();
+        (tool.translation.vector - origin.translation.vector).norm() <= bound + 1e-9
+    }
+}
