@@ -77,20 +77,8 @@ fn check_execution(plan: &Plan, query: &Query) {
     let chain = Chain::from_urdf_str(URDF, Some("base_link"), Some("tool")).unwrap();
     let base = plan.base.isometry();
     let tool = |k: usize| base * chain.tip_pose(&points[k].positions);
-    let (first, last) = (tool(e.push_start_point), tool(e.push_end_point));
-    let travel = last.translation.vector - first.translation.vector;
-    assert!((travel.norm() - (p.push.norm() + APPROACH_OFFSET)).abs() < 1e-6);
-    for k in e.push_start_point..=e.push_end_point {
-        let pose = tool(k);
-        assert!(pose.rotation.angle_to(&first.rotation) < 1e-6, "tool turns");
-        let offset = pose.translation.vector - first.translation.vector;
-        let across = offset - travel.normalize() * offset.dot(&travel.normalize());
-        assert!(
-            across.norm() < 1e-6,
-            "push leaves its line by {}",
-            across.norm()
-        );
-    }
+    let push: Vec<_> = (e.push_start_point..=e.push_end_point).map(tool).collect();
+    crate::robot_arms::assert_straight_push("ur5", &push, p.push.norm() + APPROACH_OFFSET, 1e-6);
     // Constant tool speed in the middle of the push.
     let mid = (e.push_start_point + e.push_end_point) / 2;
     let speed = (tool(mid + 1).translation.vector - tool(mid).translation.vector).norm()
@@ -142,24 +130,18 @@ fn check_plan(plan: &Plan, query: &Query) {
     }
     // The push: constant orientation, a straight line along T of length
     // |T| + the approach margin.
-    let first = arm.robot.tool_pose(&p.trajectory[p.push_start_index].q);
-    let last = arm.robot.tool_pose(&p.trajectory.last().unwrap().q);
-    let travel = last.translation.vector - first.translation.vector;
-    assert!((travel.norm() - (p.push.norm() + APPROACH_OFFSET)).abs() < 1e-6);
+    let push: Vec<_> = p.trajectory[p.push_start_index..]
+        .iter()
+        .map(|point| arm.robot.tool_pose(&point.q))
+        .collect();
+    let travel = crate::robot_arms::assert_straight_push(
+        "ur5",
+        &push,
+        p.push.norm() + APPROACH_OFFSET,
+        1e-6,
+    );
     assert!((travel.normalize() - p.push.normalize()).norm() < 1e-6);
     for point in &p.trajectory[p.push_start_index..] {
-        let pose = arm.robot.tool_pose(&point.q);
-        assert!(
-            pose.rotation.angle_to(&first.rotation) < 1e-6,
-            "tool turns during the push"
-        );
-        let offset = pose.translation.vector - first.translation.vector;
-        let across = offset - travel.normalize() * offset.dot(&travel.normalize());
-        assert!(
-            across.norm() < 1e-6,
-            "push leaves its line by {}",
-            across.norm()
-        );
         // The arm (not the gripper) never touches the tree or an obstacle.
         if let Some(hit) = arm.check(
             &point.q,

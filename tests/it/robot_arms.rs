@@ -186,27 +186,41 @@ fn every_arm_plans_trajectories_its_controller_can_run() {
                 ) * tool_in_tip
             })
             .collect();
-        let (first, last) = (tool[0], *tool.last().unwrap());
-        let travel = last.translation.vector - first.translation.vector;
-        assert!(
-            (travel.norm() - (push + APPROACH_OFFSET)).abs() < 1e-5,
-            "{name}: the push travels {} m",
-            travel.norm()
-        );
-        for pose in &tool {
-            assert!(
-                pose.rotation.angle_to(&first.rotation) < 1e-5,
-                "{name}: the tool turns"
-            );
-            let offset = pose.translation.vector - first.translation.vector;
-            let across = offset - travel.normalize() * offset.dot(&travel.normalize());
-            assert!(
-                across.norm() < 1e-5,
-                "{name}: the push leaves its line by {}",
-                across.norm()
-            );
-        }
+        assert_straight_push(name, &tool, push + APPROACH_OFFSET, 1e-5);
     }
+}
+
+/// The tool's poses along a push lie on a straight line of `length` (m)
+/// at constant orientation, within `tolerance` (m and rad); returns the
+/// travel from the first pose to the last.
+pub(crate) fn assert_straight_push(
+    name: &str,
+    tool: &[Isometry3<f64>],
+    length: f64,
+    tolerance: f64,
+) -> Vector3<f64> {
+    let (first, last) = (tool[0], *tool.last().unwrap());
+    let travel = last.translation.vector - first.translation.vector;
+    assert!(
+        (travel.norm() - length).abs() < tolerance,
+        "{name}: the push travels {} m",
+        travel.norm()
+    );
+    let direction = travel.normalize();
+    for pose in tool {
+        assert!(
+            pose.rotation.angle_to(&first.rotation) < tolerance,
+            "{name}: the tool turns"
+        );
+        let offset = pose.translation.vector - first.translation.vector;
+        let across = offset - direction * offset.dot(&direction);
+        assert!(
+            across.norm() < tolerance,
+            "{name}: the push leaves its line by {}",
+            across.norm()
+        );
+    }
+    travel
 }
 
 /// Tip poses (base link frame) of each case's configurations by Pinocchio.
