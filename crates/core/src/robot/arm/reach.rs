@@ -42,21 +42,39 @@ impl Arm {
         arms
     }
 
+    /// Indices of the links a joint moves, in chain order.
+    fn moving_links(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.links.len()).filter(|&k| self.links[k].motion.is_some())
+    }
+
+    /// The sum of the link offsets (and prismatic travel) on the way from
+    /// the tool up to `ancestor`, whose own offset is left out: a bound on
+    /// the tool's distance from `ancestor`'s joint origin.
+    fn offsets_below(&self, ancestor: usize) -> f64 {
+        let mut sum = 0.0;
+        let mut k = self.tool;
+        while k != ancestor {
+            let link = &self.links[k];
+            sum += link.origin.translation.vector.norm();
+            if let Some(m) = &link.motion
+                && m.prismatic
+            {
+                let j = &self.joints[m.variable];
+                sum += j.lower.abs().max(j.upper.abs());
+            }
+            match link.parent {
+                Some(p) => k = p,
+                None => break,
+            }
+        }
+        sum
+    }
+
     /// How far the tool can be from the second joint's origin (the
     /// shoulder), bounded by the sum of the link offsets between them (m):
-    /// a measure of the arm's size (1.17 for the built-in UR5).
+    /// a measure of the arm's size (1.08 for the built-in UR5).
     pub fn reach(&self) -> f64 {
-        let shoulder = self.links.iter().filter(|l| l.motion.is_some()).nth(1);
-        let mut length = 0.0;
-        let mut k = self.tool;
-        while let Some(p) = self.links[k].parent {
-            length += self.links[k].origin.translation.vector.norm();
-            if shoulder.is_some_and(|s| std::ptr::eq(s, &self.links[p])) {
-                break;
-            }
-            k = p;
-        }
-        length
+        self.offsets_below(self.moving_links().nth(1).unwrap_or(0))
     }
 
     /// Whether the tip pose `goal` (chain base frame) is within the chain's
@@ -64,33 +82,19 @@ impl Arm {
     /// point no joint moves) than the sum of the link offsets between them.
     /// Spares the numerical solver its restarts on poses out of reach.
     pub(super) fn within_reach(&self, goal: &Isometry3<f64>) -> bool {
-        let Some(first) = self.links.iter().position(|l| l.motion.is_some()) else {
+        let Some(first) = self.moving_links().next() else {
             return true;
         };
-        let mut bound = 0.0;
+        // The first joint's frame in the chain base frame: the links up
+        // to it do not move.
         let mut origin = Isometry3::identity();
-        let mut k = self.tool;
-        while let Some(p) = self.links[k].parent {
-            if k == first {
-                origin = self.links[k].origin;
-                break;
-            }
-            bound += self.links[k].origin.translation.vector.norm();
-            if let Some(m) = &self.links[k].motion
-                && m.prismatic
-            {
-                let j = &self.joints[m.variable];
-                bound += j.lower.abs().max(j.upper.abs());
-            }
-            k = p;
-        }
-        // The first joint's frame in the chain base frame (links before it
-        // do not move).
-        while let Some(p) = self.links[k].parent {
-            k = p;
-            origin = self.links[k].origin * origin;
+        let mut k = Some(first);
+        while let Some(i) = k {
+            origin = self.links[i].origin * origin;
+            k = self.links[i].parent;
         }
         let tool = goal * self.tool_in_tip();
-        (tool.translation.vector - origin.translation.vector).norm() <= bound + 1e-9
+        (tool.translation.vector - origin.translation.vector).norm()
+            <= self.offsets_below(first) + 1e-9
     }
 }
