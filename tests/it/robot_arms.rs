@@ -85,14 +85,18 @@ fn cases() -> Vec<Case> {
         );
         let data: String = serde_json::from_slice(&out_dir).unwrap();
         let urdf = format!("{data}/franka_panda/panda.urdf");
-        // The raw URDF and a configuration: the chain's tip and where the
-        // ⊔ gripper sits (past the closed fingers); all else defaults.
+        // The raw URDF and a configuration: the chain's tip, where the ⊔
+        // gripper sits (past the closed fingers), and jerk limits tight
+        // enough (30 rad/s³, Franka's are 3750 and up) that the timing must
+        // spread every change of acceleration over a second or so; all else
+        // defaults.
         let config = crate::common::temp_dir("pybullet-panda").join("panda.toml");
         let mount = "[tool]\nmount = { xyz = [0.0, 0.0, 0.11], rpy = [0.0, 0.0, 0.0] }\n";
         std::fs::write(
             &config,
             format!(
-                "name = \"panda_pybullet\"\nurdf = \"{urdf}\"\ntip_link = \"panda_hand\"\n{mount}"
+                "name = \"panda_pybullet\"\nurdf = \"{urdf}\"\ntip_link = \"panda_hand\"\n\
+                 jerk = [30, 30, 30, 30, 30, 30, 30]\n{mount}"
             ),
         )
         .unwrap();
@@ -109,8 +113,8 @@ fn cases() -> Vec<Case> {
 
 /// Every arm plans pushes on random trees (model strategy, base region),
 /// and each controller trajectory stays within that arm's position,
-/// velocity and acceleration limits by finite differences of its positions
-/// alone, starts and ends at rest at the start, keeps the approach free of
+/// velocity, acceleration and (where it has them) jerk limits by finite
+/// differences of its positions alone, starts and ends at rest at the start, keeps the approach free of
 /// the tree, pushes in a straight line at constant tool orientation by
 /// Pinocchio's forward kinematics of the original URDF, and converts one to
 /// one into a ROS 2 `JointTrajectory` serialised to CDR.
@@ -304,6 +308,28 @@ pub(crate) fn check_limits(name: &str, arm: &Arm, trajectory: &JointTrajectory) 
             assert!(
                 dv.abs() <= amax[i] * h2 * 1.05 + 1e-6,
                 "{name}: velocity jumps at {k}: joint {i} by {dv} in {h2} s"
+            );
+        }
+    }
+    let Some(jmax) = arm.jerk_limits() else {
+        return;
+    };
+    // Jerk: 6·q[t₀, t₁, t₂, t₃] (third divided difference) is a weighted
+    // average of the jerk over [t₀, t₃], so it is within the limit wherever
+    // the jerk is (and unbounded across a jump of acceleration).
+    for w in (0..points.len()).collect::<Vec<_>>().windows(4) {
+        for i in 0..arm.dof() {
+            let mut d: Vec<f64> = w.iter().map(|&k| points[k].positions[i]).collect();
+            for order in 1..4 {
+                for k in 0..4 - order {
+                    d[k] = (d[k + 1] - d[k]) / (t[w[k + order]] - t[w[k]]);
+                }
+            }
+            let jerk = 6.0 * d[0];
+            assert!(
+                jerk.abs() <= jmax[i] * (1.0 + 1e-3),
+                "{name}: joint {i} at {jerk} rad/s³ around point {}",
+                w[0]
             );
         }
     }

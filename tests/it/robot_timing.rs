@@ -6,6 +6,7 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use treemanip::robot::timing::jerk::JerkLimited;
 use treemanip::robot::timing::{SplinePath, TimedPath, time_optimal};
 
 /// `count` random waypoints of `dof` joints, each a step of up to 1 rad.
@@ -143,5 +144,83 @@ print(json.dumps(out))
             (0.95..=1.1).contains(&ratio),
             "ours {ours} s vs toppra {theirs} s"
         );
+    }
+}
+
+/// Per joint, the largest |jerk| over positions sampled every `dt`, by
+/// third differences (Δ³q/dt³ is the jerk somewhere in its span).
+fn jerk_peaks(sample: impl Fn(f64) -> Vec<f64>, duration: f64, dof: usize, dt: f64) -> Vec<f64> {
+    let steps = (duration / dt).ceil() as usize;
+    let q: Vec<Vec<f64>> = (0..=steps).map(|k| sample(k as f64 * dt)).collect();
+    let mut peak = vec![0.0f64; dof];
+    for w in q.windows(4) {
+        for j in 0..dof {
+            let third = w[3][j] - 3.0 * w[2][j] + 3.0 * w[1][j] - w[0][j];
+            peak[j] = peak[j].max((third / dt.powi(3)).abs());
+        }
+    }
+    peak
+}
+
+/// Jerk limits: TOPP-RA alone jerks far past them (its acceleration
+/// jumps); the jerk-limited timing of the same path keeps them and the
+/// velocity and acceleration limits, measured from positions alone,
+/// begins and ends exactly at the path's ends at rest, and costs little
+/// time when the limits are loose.
+#[test]
+fn jerk_limited_timing_keeps_jerk_limits() {
+    for (dof, seed, jerk) in [(7, 21u64, 20.0), (6, 22, 50.0), (7, 23, 1000.0)] {
+        let (vmax, amax) = limits(dof);
+        let jmax = vec![jerk; dof];
+        let w = waypoints(dof, 5, seed);
+        let timed = time_optimal(SplinePath::new(&w).unwrap(), &vmax, &amax, 400).unwrap();
+        let dt = 2e-3;
+        let raw = jerk_peaks(
+            |t| timed.sample(t).0.as_slice().to_vec(),
+            timed.duration(),
+            dof,
+            dt,
+        );
+        let raw_worst = raw.iter().fold(0.0f64, |m, v| m.max(*v)) / jerk;
+        let smooth = JerkLimited::new(timed.clone(), &vmax, &amax, &jmax);
+        let peaks = jerk_peaks(
+            |t| smooth.sample(t).0.as_slice().to_vec(),
+            smooth.duration(),
+            dof,
+            dt,
+        );
+        let ratio = smooth.duration() / timed.duration();
+        eprintln!(
+            "{dof} joints, jerk {jerk}: TOPP-RA {raw_worst:.1}× the jerk limit; jerk-limited \
+             {:.3} of it, {ratio:.3}× as long",
+            peaks.iter().fold(0.0f64, |m, v| m.max(*v)) / jerk
+        );
+        if jerk < 1000.0 {
+            assert!(raw_worst > 1.5, "the test path must need the jerk limit");
+        }
+        for j in 0..dof {
+            assert!(peaks[j] <= jmax[j] * 1.001, "joint {j}: jerk {}", peaks[j]);
+        }
+        // Velocity and acceleration by finite differences of positions.
+        let steps = (smooth.duration() / 1e-3).ceil() as usize;
+        let q: Vec<_> = (0..=steps)
+            .map(|k| smooth.sample(k as f64 * 1e-3).0)
+            .collect();
+        for k in 1..steps {
+            for j in 0..dof {
+                let v = (q[k + 1][j] - q[k - 1][j]) / 2e-3;
+                let a = (q[k + 1][j] - 2.0 * q[k][j] + q[k - 1][j]) / 1e-6;
+                assert!(v.abs() <= vmax[j], "joint {j}: velocity {v}");
+                assert!(a.abs() <= amax[j] * 1.001, "joint {j}: acceleration {a}");
+            }
+        }
+        let (start, v0, a0) = smooth.sample(0.0);
+        let (end, v1, a1) = smooth.sample(smooth.duration());
+        assert_eq!(start.as_slice(), w[0].as_slice());
+        assert_eq!(end.as_slice(), w.last().unwrap().as_slice());
+        assert!(v0.norm() + a0.norm() + v1.norm() + a1.norm() < 1e-9);
+        if jerk >= 1000.0 {
+            assert!(ratio < 1.05, "a loose jerk limit costs {ratio}×");
+        }
     }
 }

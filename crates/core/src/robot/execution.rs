@@ -1,29 +1,33 @@
 //! The whole held push as one timed trajectory a controller executes:
 //! approach (its waypoints blended by a spline when the blended path is
-//! collision-free, timed by TOPP-RA), the straight push at a constant tool
-//! speed with smooth ramps (inverse kinematics at every sample, so the tool
-//! moves exactly along the line at constant orientation), a hold, the
-//! release (the push backward) and the retreat (the approach backward).
-//! Sampled every `period` into a ROS 2 [`JointTrajectory`].
+//! collision-free, timed by TOPP-RA, made jerk-limited when the arm has
+//! jerk limits), the straight push at a constant tool speed with smooth
+//! ramps (inverse kinematics at every sample, so the tool moves exactly
+//! along the line at constant orientation), a hold, the release (the push
+//! backward) and the retreat (the approach backward). Sampled every
+//! `period` into a ROS 2 [`JointTrajectory`]. The acceleration is
+//! continuous throughout: the push's ramps are half-cosines.
 
 use nalgebra::{Isometry3, Translation3, Vector3};
 
 use super::Arm;
 use super::ros::{JointTrajectory, JointTrajectoryPoint, RosDuration};
 use super::rrt::{Config, MotionValidator};
-use super::timing::{SplinePath, TimedPath, time_optimal};
+use super::timing::jerk::JerkLimited;
+use super::timing::{SplinePath, time_optimal};
 
 /// How the trajectory is timed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ExecutionOptions {
     /// Tool speed along the push (m/s).
     pub push_speed: f64,
-    /// Tool acceleration of the push's ramps (m/s²).
+    /// Peak tool acceleration of the push's ramps (m/s²).
     pub push_acceleration: f64,
     /// Time the push is held (s).
     pub hold_s: f64,
     /// Shares (0, 1] of the joints' velocity and acceleration limits, as
-    /// MoveIt's scaling factors.
+    /// MoveIt's scaling factors; jerk limits, where the arm has them, are
+    /// scaled with the acceleration.
     pub velocity_scaling: f64,
     pub acceleration_scaling: f64,
     /// Largest spacing of the trajectory's points (s). A joint trajectory
@@ -71,14 +75,32 @@ fn point(q: &[f64], v: &[f64], a: &[f64], t: f64) -> JointTrajectoryPoint {
     }
 }
 
+/// Joint limits a trajectory keeps (per joint; jerk only where the arm
+/// has jerk limits).
+struct Limits {
+    velocity: Vec<f64>,
+    acceleration: Vec<f64>,
+    jerk: Option<Vec<f64>>,
+}
+
+impl Limits {
+    /// TOPP-RA on `path`, jerk-limited when there are jerk limits.
+    fn time(&self, path: SplinePath, grid: usize) -> Option<JerkLimited> {
+        let timed = time_optimal(path, &self.velocity, &self.acceleration, grid)?;
+        Some(match &self.jerk {
+            Some(jerk) => JerkLimited::new(timed, &self.velocity, &self.acceleration, jerk),
+            None => JerkLimited::unlimited(timed),
+        })
+    }
+}
+
 /// The approach timed: blended if the blended path is free in `scene`,
 /// otherwise a rest-to-rest straight segment per waypoint pair.
 fn approach_timing(
     waypoints: &[Config],
     scene: &dyn MotionValidator,
-    vmax: &[f64],
-    amax: &[f64],
-) -> Option<(Vec<TimedPath>, bool)> {
+    limits: &Limits,
+) -> Option<(Vec<JerkLimited>, bool)> {
     let as_vec: Vec<Vec<f64>> = waypoints.iter().map(|q| q.to_vec()).collect();
     let spline = SplinePath::new(&as_vec)?;
     let steps = (spline.length() / BLEND_CHECK_STEP).ceil().max(1.0) as usize;
@@ -91,39 +113,37 @@ fn approach_timing(
     let free = samples.iter().all(|q| scene.config_valid(q))
         && samples.windows(2).all(|w| scene.edge_valid(&w[0], &w[1]));
     if free {
-        return Some((vec![time_optimal(spline, vmax, amax, 400)?], true));
+        return Some((vec![limits.time(spline, 400)?], true));
     }
     let segments = as_vec
         .windows(2)
         .filter_map(SplinePath::new)
-        .map(|s| time_optimal(s, vmax, amax, 100))
+        .map(|s| limits.time(s, 100))
         .collect::<Option<Vec<_>>>()?;
     Some((segments, false))
 }
 
-/// Distance along the push at time t of a trapezoid (accelerate, cruise,
-/// decelerate) over `length` at `speed` and `acceleration`; and its total
-/// duration.
+/// Distance along the push at time t: from rest up to `speed` over a
+/// half-cosine ramp whose peak acceleration is `acceleration` (speed
+/// V(1 − cos πt/T)/2, so the acceleration starts and ends at zero and
+/// the jerk is bounded), cruise, and the mirror-image ramp down; and the
+/// total duration. A push too short to reach `speed` ramps to a lower one.
 fn push_profile(length: f64, speed: f64, acceleration: f64) -> (f64, impl Fn(f64) -> f64) {
-    let ramp = speed / acceleration;
-    let (ramp, cruise_speed) = if acceleration * ramp * ramp > length {
-        // Too short to reach the speed: a triangle.
-        let r = (length / acceleration).sqrt();
-        (r, acceleration * r)
-    } else {
-        (ramp, speed)
-    };
-    let cruise = (length - acceleration * ramp * ramp) / cruise_speed;
+    use std::f64::consts::PI;
+    // A ramp lasts T = πV/(2A) and covers VT/2.
+    let speed = speed.min((2.0 * acceleration * length / PI).sqrt());
+    let ramp = PI * speed / (2.0 * acceleration);
+    let cruise = (length - speed * ramp).max(0.0) / speed;
     let total = 2.0 * ramp + cruise;
+    let ramp_distance = move |t: f64| speed / 2.0 * (t - ramp / PI * (PI * t / ramp).sin());
     let at = move |t: f64| {
         let t = t.clamp(0.0, total);
         if t < ramp {
-            0.5 * acceleration * t * t
+            ramp_distance(t)
         } else if t <= ramp + cruise {
-            0.5 * acceleration * ramp * ramp + cruise_speed * (t - ramp)
+            speed * ramp / 2.0 + speed * (t - ramp)
         } else {
-            let r = total - t;
-            length - 0.5 * acceleration * r * r
+            length - ramp_distance(total - t)
         }
     };
     (total, at)
@@ -220,6 +240,34 @@ fn at_rest_ends(samples: &[(f64, Config)], derivatives: &[(Config, Config)], ama
     worst
 }
 
+/// The largest share of `jmax` that the jerk of timed samples reaches,
+/// by third divided differences of their positions (6·q[t₀, t₁, t₂, t₃]
+/// is a weighted average of the jerk over [t₀, t₃]), with the samples
+/// held at rest one interval before the first and after the last.
+fn jerk_ratio(samples: &[(f64, Config)], jmax: &[f64]) -> f64 {
+    let (Some(first), Some(last)) = (samples.first(), samples.last()) else {
+        return 0.0;
+    };
+    let h = samples.get(1).map_or(1.0, |s| s.0 - first.0);
+    let padded: Vec<(f64, Config)> = std::iter::once((first.0 - h, first.1))
+        .chain(samples.iter().copied())
+        .chain(std::iter::once((last.0 + h, last.1)))
+        .collect();
+    let mut worst: f64 = 0.0;
+    for w in padded.windows(4) {
+        for (i, limit) in jmax.iter().enumerate() {
+            let mut d: Vec<f64> = w.iter().map(|(_, q)| q[i]).collect();
+            for order in 1..4 {
+                for k in 0..4 - order {
+                    d[k] = (d[k + 1] - d[k]) / (w[k + order].0 - w[k].0);
+                }
+            }
+            worst = worst.max(6.0 * d[0].abs() / limit);
+        }
+    }
+    worst
+}
+
 /// The whole trajectory: approach along `approach` (collision-checked in
 /// `scene` when blended), push `length` along `direction` from the
 /// approach's end, hold, release, retreat.
@@ -231,17 +279,23 @@ pub fn execution(
     length: f64,
     options: &ExecutionOptions,
 ) -> Option<Execution> {
-    let vmax: Vec<f64> = arm
-        .velocity_limits()
-        .iter()
-        .map(|v| v * options.velocity_scaling)
-        .collect();
-    let amax: Vec<f64> = arm
-        .acceleration_limits()
-        .iter()
-        .map(|a| a * options.acceleration_scaling)
-        .collect();
-    let (segments, blended) = approach_timing(approach, scene, &vmax, &amax)?;
+    let limits = Limits {
+        velocity: arm
+            .velocity_limits()
+            .iter()
+            .map(|v| v * options.velocity_scaling)
+            .collect(),
+        acceleration: arm
+            .acceleration_limits()
+            .iter()
+            .map(|a| a * options.acceleration_scaling)
+            .collect(),
+        jerk: arm
+            .jerk_limits()
+            .map(|j| j.iter().map(|j| j * options.acceleration_scaling).collect()),
+    };
+    let (vmax, amax) = (&limits.velocity, &limits.acceleration);
+    let (segments, blended) = approach_timing(approach, scene, &limits)?;
     let period = options.period;
     // Approach, sampled.
     let mut points: Vec<JointTrajectoryPoint> = Vec::new();
@@ -269,13 +323,17 @@ pub fn execution(
     let (samples, derivatives) = loop {
         let samples = push_samples(arm, start, direction, length, speed, acceleration, period)?;
         let derivatives = central_differences(&samples);
-        let (vmax, amax) = (&vmax, &amax);
+        let jerk = limits
+            .jerk
+            .as_ref()
+            .map_or(0.0, |jmax| jerk_ratio(&samples, jmax));
         let worst = derivatives
             .iter()
             .flat_map(|(v, a)| {
                 (0..v.len()).map(move |i| (v[i].abs() / vmax[i]).max(a[i].abs() / amax[i]))
             })
-            .fold(at_rest_ends(&samples, &derivatives, amax), f64::max);
+            .fold(at_rest_ends(&samples, &derivatives, amax), f64::max)
+            .max(jerk);
         if worst <= 1.0 {
             break (samples, derivatives);
         }

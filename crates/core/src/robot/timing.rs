@@ -13,6 +13,8 @@
 
 use nalgebra::DVector;
 
+pub mod jerk;
+
 /// A C² path through joint-space waypoints: per joint a cubic spline in s,
 /// the cumulative chord length between waypoints, with zero slope at both
 /// ends (so the path starts and ends at rest).
@@ -88,13 +90,24 @@ impl SplinePath {
         *self.knots.last().unwrap()
     }
 
+    /// The knot interval holding `s` (already clamped to the path).
+    fn interval(&self, s: f64) -> usize {
+        match self.knots.binary_search_by(|k| k.total_cmp(&s)) {
+            Ok(i) => i.min(self.knots.len() - 2),
+            Err(i) => i.saturating_sub(1).min(self.knots.len() - 2),
+        }
+    }
+
+    /// q‴(s): constant on each knot interval (the path is a cubic there).
+    pub fn third(&self, s: f64) -> DVector<f64> {
+        let i = self.interval(s.clamp(0.0, self.length()));
+        (&self.second[i + 1] - &self.second[i]) / (self.knots[i + 1] - self.knots[i])
+    }
+
     /// q(s), q′(s), q″(s).
     pub fn eval(&self, s: f64) -> (DVector<f64>, DVector<f64>, DVector<f64>) {
         let s = s.clamp(0.0, self.length());
-        let i = match self.knots.binary_search_by(|k| k.total_cmp(&s)) {
-            Ok(i) => i.min(self.knots.len() - 2),
-            Err(i) => i.saturating_sub(1).min(self.knots.len() - 2),
-        };
+        let i = self.interval(s);
         let h = self.knots[i + 1] - self.knots[i];
         let (a, b) = (self.knots[i + 1] - s, s - self.knots[i]);
         let (m0, m1) = (&self.second[i], &self.second[i + 1]);
@@ -133,24 +146,50 @@ impl TimedPath {
         *self.t.last().unwrap()
     }
 
+    /// The grid interval holding time `t` (already clamped).
+    fn interval(&self, t: f64) -> usize {
+        match self.t.binary_search_by(|v| v.total_cmp(&t)) {
+            Ok(k) => k.min(self.t.len() - 2),
+            Err(k) => k.saturating_sub(1).min(self.t.len() - 2),
+        }
+    }
+
+    /// Path acceleration s̈ on grid interval `k` (constant there).
+    fn path_acceleration(&self, k: usize) -> f64 {
+        let dt = self.t[k + 1] - self.t[k];
+        if dt > 0.0 {
+            (self.speed[k + 1] - self.speed[k]) / dt
+        } else {
+            0.0
+        }
+    }
+
+    /// Path position, speed and acceleration (s, ṡ, s̈) at time `t`; at
+    /// rest at the start before 0 and at the end after the duration.
+    pub fn path_state(&self, t: f64) -> (f64, f64, f64) {
+        if t <= 0.0 {
+            return (0.0, 0.0, 0.0);
+        }
+        if t >= self.duration() {
+            return (*self.s.last().unwrap(), 0.0, 0.0);
+        }
+        let k = self.interval(t);
+        let u = self.path_acceleration(k);
+        let tau = t - self.t[k];
+        let s = (self.s[k] + self.speed[k] * tau + 0.5 * u * tau * tau).min(self.s[k + 1]);
+        (s, self.speed[k] + u * tau, u)
+    }
+
     /// Position, velocity and acceleration at time `t` (clamped to the
     /// trajectory): within a grid interval the path acceleration is
     /// constant, as the timing assumes.
     pub fn sample(&self, t: f64) -> (DVector<f64>, DVector<f64>, DVector<f64>) {
         let t = t.clamp(0.0, self.duration());
-        let k = match self.t.binary_search_by(|v| v.total_cmp(&t)) {
-            Ok(k) => k.min(self.t.len() - 2),
-            Err(k) => k.saturating_sub(1).min(self.t.len() - 2),
-        };
-        let (dt, ds) = (self.t[k + 1] - self.t[k], self.s[k + 1] - self.s[k]);
-        let u = if dt > 0.0 {
-            (self.speed[k + 1] - self.speed[k]) / dt
-        } else {
-            0.0
-        };
+        let k = self.interval(t);
+        let u = self.path_acceleration(k);
         let tau = t - self.t[k];
         let speed = self.speed[k] + u * tau;
-        let s = (self.s[k] + self.speed[k] * tau + 0.5 * u * tau * tau).min(self.s[k] + ds);
+        let s = (self.s[k] + self.speed[k] * tau + 0.5 * u * tau * tau).min(self.s[k + 1]);
         let (q, dq, ddq) = self.path.eval(s);
         let v = &dq * speed;
         let a = &ddq * (speed * speed) + &dq * u;
