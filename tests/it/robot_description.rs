@@ -178,3 +178,74 @@ fn imports_round_trip_and_bad_configurations_are_named() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A MoveIt SRDF's `<disable_collisions>` pairs join the sampled ones:
+/// example-robot-data's Panda with its own SRDF keeps every pair the SRDF
+/// names (those the sampling did not find marked as the SRDF's), and an
+/// SRDF naming a link the URDF lacks, or one that is not XML, is an error
+/// naming the SRDF.
+#[test]
+fn an_srdfs_disabled_pairs_are_kept_and_bad_ones_named() {
+    if !crate::common::python_has("pinocchio") {
+        return;
+    }
+    let out = crate::common::python_json(
+        "import json, os, sysconfig; print(json.dumps(os.path.join(sysconfig.get_paths()['purelib'], \
+         'cmeel.prefix', 'share', 'example-robot-data', 'robots', 'panda_description')))",
+        &serde_json::Value::Null,
+    );
+    let panda: String = serde_json::from_slice(&out).unwrap();
+    let srdf_path = format!("{panda}/srdf/panda.srdf");
+    let srdf = std::fs::read_to_string(&srdf_path).expect("example-robot-data ships panda.srdf");
+    let dir = crate::common::temp_dir("srdf");
+    let config = |srdf: &str| {
+        format!(
+            "name = \"panda\"\nurdf = \"{panda}/urdf/panda.urdf\"\ntip_link = \"panda_hand\"\n\
+             srdf = \"{srdf}\"\n"
+        )
+    };
+    let good = write(&dir, "panda.toml", &config(&srdf_path));
+    let d = import(&good, &[], "test").unwrap();
+    let pairs = treemanip::robot::srdf::disabled_collisions(&srdf).unwrap();
+    assert!(pairs.len() > 20, "{} pairs", pairs.len());
+    for p in &pairs {
+        assert!(
+            d.disabled_pairs
+                .iter()
+                .any(|x| (x.a == p.link1 && x.b == p.link2) || (x.a == p.link2 && x.b == p.link1)),
+            "{} – {} kept",
+            p.link1,
+            p.link2
+        );
+    }
+    let from_srdf = d
+        .disabled_pairs
+        .iter()
+        .filter(|x| x.reason == treemanip::robot::self_collision::DisableReason::Srdf)
+        .count();
+    assert!(from_srdf > 0, "the SRDF adds pairs the sampling kept");
+    // The hand against link 5: the setup assistant disabled it because
+    // they touch at the default pose ("Default"); our capsules do not
+    // always touch, so only the SRDF disables it.
+    assert!(d.disabled_pairs.iter().any(|x| x.reason
+        == treemanip::robot::self_collision::DisableReason::Srdf
+        && [&x.a, &x.b].contains(&&"panda_link5".to_owned())));
+    let wrong = write(
+        &dir,
+        "wrong.srdf",
+        "<robot name=\"x\"><disable_collisions link1=\"panda_link1\" link2=\"elbow\" reason=\"Never\"/></robot>",
+    );
+    let broken = write(&dir, "broken.srdf", "<robot><a></b></robot>");
+    for (srdf, needle) in [
+        (wrong, "link `elbow` is not in the URDF"),
+        (broken, "not XML"),
+        (dir.join("absent.srdf"), "cannot be read"),
+    ] {
+        let bad = write(&dir, "bad.toml", &config(&srdf.display().to_string()));
+        let e = import(&bad, &[], "test").unwrap_err().to_string();
+        assert!(
+            e.contains(needle) && e.contains(&*srdf.display().to_string()),
+            "{e}"
+        );
+    }
+}

@@ -122,6 +122,7 @@ pub fn load_description(
             jerk: None,
             home: None,
             disabled_pairs: Vec::new(),
+            srdf: None,
             licence: String::new(),
             tool: Default::default(),
         };

@@ -14,6 +14,7 @@
 //! jerk = 5000                      # optional
 //! home = [0, -0.785, 0, -2.356, 0, 1.571, 0.785]    # default: 0 clamped into the limits
 //! disabled_pairs = [["panda_link0", "panda_link2"]] # added to the sampled ones
+//! srdf = "panda.srdf"              # optional: its <disable_collisions> added too
 //! licence = "Apache-2.0 (example-robot-data)"
 //! ```
 //!
@@ -84,6 +85,10 @@ pub struct RobotConfig {
     pub home: Option<Vec<f64>>,
     #[serde(default)]
     pub disabled_pairs: Vec<[String; 2]>,
+    /// A MoveIt SRDF, relative to the configuration file, whose
+    /// `<disable_collisions>` pairs are added to the sampled ones.
+    #[serde(default)]
+    pub srdf: Option<PathBuf>,
     /// Where the URDF comes from and under which licence.
     #[serde(default)]
     pub licence: String,

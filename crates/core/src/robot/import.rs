@@ -10,6 +10,7 @@ use super::description::{
 };
 use super::link_geometry::link_geometry;
 use super::self_collision::{DisableReason, DisabledPair, all_link_poses, disabled_pairs};
+use super::srdf::{SrdfPair, disabled_collisions};
 
 /// Imports the robot that the configuration at `config_path` describes:
 /// reads its URDF and meshes (through `packages` and the URDF's
@@ -34,7 +35,17 @@ pub fn import(
     let urdf_text = std::fs::read_to_string(&urdf_path)
         .map_err(|e| fail(&urdf_path, format!("cannot be read: {e}")))?;
     let robot = parse_urdf(&urdf_text).map_err(|e| fail(&urdf_path, e.to_string()))?;
-    describe(
+    let srdf = match &config.srdf {
+        Some(path) => {
+            let path = config_path.parent().unwrap_or(Path::new(".")).join(path);
+            let text = std::fs::read_to_string(&path)
+                .map_err(|e| fail(&path, format!("cannot be read: {e}")))?;
+            let pairs = disabled_collisions(&text).map_err(|m| fail(&path, m))?;
+            Some((path, pairs))
+        }
+        None => None,
+    };
+    let mut description = describe(
         config,
         &robot,
         urdf_path.parent(),
@@ -45,7 +56,44 @@ pub fn import(
     .map_err(|(file, message)| match file {
         Blame::Config => fail(config_path, message),
         Blame::Urdf => fail(&urdf_path, message),
-    })
+    })?;
+    if let Some((path, pairs)) = srdf {
+        add_srdf_pairs(&mut description, &robot, &pairs).map_err(|m| fail(&path, m))?;
+    }
+    Ok(description)
+}
+
+/// Adds an SRDF's disabled pairs that the description does not already
+/// have; a link the URDF lacks is an error (the SRDF is for another
+/// robot).
+fn add_srdf_pairs(
+    description: &mut RobotDescription,
+    robot: &urdf_rs::Robot,
+    pairs: &[SrdfPair],
+) -> Result<(), String> {
+    for p in pairs {
+        for l in [&p.link1, &p.link2] {
+            if !robot.links.iter().any(|x| &x.name == l) {
+                return Err(format!(
+                    "<disable_collisions link1=\"{}\" link2=\"{}\">: link `{l}` is not in the URDF",
+                    p.link1, p.link2
+                ));
+            }
+        }
+        let (a, b) = (&p.link1, &p.link2);
+        let known = description
+            .disabled_pairs
+            .iter()
+            .any(|d| (&d.a == a && &d.b == b) || (&d.a == b && &d.b == a));
+        if !known {
+            description.disabled_pairs.push(DisabledPair {
+                a: a.clone(),
+                b: b.clone(),
+                reason: DisableReason::Srdf,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Which file a problem of [`describe`] lies in.

@@ -21,6 +21,7 @@ pub mod ros;
 pub mod rrt;
 pub mod scene;
 pub mod self_collision;
+pub mod srdf;
 pub mod timing;
 pub mod trajectory;
 pub mod ur5;

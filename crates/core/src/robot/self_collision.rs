@@ -35,6 +35,8 @@ pub enum DisableReason {
     Always,
     /// Named in the robot's configuration.
     Configured,
+    /// Named in the robot's SRDF.
+    Srdf,
 }
 
 /// A pair of links left out of self-collision checks.

@@ -256,6 +256,7 @@ pub fn description() -> RobotDescription {
             .iter()
             .map(|(a, b)| [(*a).to_owned(), (*b).to_owned()])
             .collect(),
+        srdf: None,
         licence: "treemanip's own (written from Universal Robots' DH parameters)".to_owned(),
         tool: ToolSpec {
             mount: PoseSpec::identity(),
