@@ -78,6 +78,7 @@ fn cases() -> Vec<Case> {
             }
         })
         .collect();
+    out.push(paddle_ur10());
     if crate::common::python_has("pybullet_data") {
         let out_dir = crate::common::python_json(
             "import pybullet_data, json; print(json.dumps(pybullet_data.getDataPath()))",
@@ -109,6 +110,57 @@ fn cases() -> Vec<Case> {
         });
     }
     out
+}
+
+/// The shipped UR10 with the user's own tool in place of the ⊔ gripper:
+/// a flat paddle (a cylinder standoff and a plate) whose face is the tool
+/// frame, 9 cm out of the mount.
+fn paddle_ur10() -> Case {
+    let text = std::fs::read_to_string("robots/ur10.toml").unwrap();
+    let tool = "[tool]\ngripper = true\n";
+    assert!(text.contains(tool));
+    let paddle = "[tool]\ngripper = true\n\
+        frame = { xyz = [0.0, 0.0, 0.09], rpy = [0.0, 0.0, 0.0] }\n\
+        shapes = [\n\
+          { type = \"cylinder\", origin = { xyz = [0.0, 0.0, 0.04], rpy = [0.0, 0.0, 0.0] }, radius = 0.02, length = 0.08 },\n\
+          { type = \"box\", origin = { xyz = [0.0, 0.0, 0.085], rpy = [0.0, 0.0, 0.0] }, size = [0.06, 0.06, 0.01] },\n\
+        ]\n";
+    let text =
+        text.replacen(tool, paddle, 1)
+            .replacen("name = \"ur10\"", "name = \"ur10_paddle\"", 1);
+    let d =
+        RobotDescription::from_toml_str(&text, std::path::Path::new("ur10_paddle.toml")).unwrap();
+    let arm = Arm::from_description(&d).unwrap();
+    // The paddle is the gripper link's geometry, and the tool frame its face.
+    let mount = d.tool.mount.isometry();
+    let expected = mount * Isometry3::translation(0.0, 0.0, 0.09);
+    assert!((arm.tool_in_tip().to_homogeneous() - expected.to_homogeneous()).norm() < 1e-12);
+    let gripper = arm
+        .link_shapes()
+        .find(|(name, _)| *name == "gripper")
+        .unwrap();
+    assert_eq!(gripper.1.len(), 2, "the paddle's two shapes");
+    // Bad tools are named.
+    for (from, to, needle) in [
+        (
+            "size = [0.06, 0.06, 0.01]",
+            "size = [0.06, -0.06, 0.01]",
+            "tool.shapes[1]",
+        ),
+        ("gripper = true", "gripper = false", "tool.gripper is false"),
+    ] {
+        let bad = text.replacen(from, to, 1);
+        let d = RobotDescription::from_toml_str(&bad, std::path::Path::new("bad.toml"));
+        let e = match d {
+            Ok(d) => Arm::from_description(&d).err().unwrap_or_default(),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains(needle), "{to}: {e}");
+    }
+    Case {
+        arm,
+        urdf: d.source.urdf,
+    }
 }
 
 /// Every arm plans pushes on random trees (model strategy, base region),

@@ -7,8 +7,9 @@
 //! another as a mimic joint), and every other link with collision shapes
 //! fixed on the chain link it rides on (hands, fingers and joints off the
 //! chain stay where they are at zero). The pusher tool sits on the tip:
-//! the ⊔ gripper's boxes, unless the URDF carries them, and the tool frame
-//! `tool` at the palm's face.
+//! the link `gripper` with the ⊔ gripper's boxes or the user's own tool
+//! shapes (none when the URDF carries them), and the tool frame `tool`,
+//! at the palm's face or where the user's tool says.
 //!
 //! Inverse kinematics takes the closed form when the chain has UR
 //! kinematics ([`UrKinematics::detect`]: 2.5 µs a pose) and damped least
@@ -193,6 +194,33 @@ impl Arm {
             }
         }
         let mount = d.tool.mount.isometry();
+        let tool_shapes: Vec<LinkShape> = match &d.tool.shapes {
+            Some(_) if !d.tool.gripper => {
+                return Err("tool.shapes is given but tool.gripper is false".to_owned());
+            }
+            Some(shapes) if shapes.is_empty() => {
+                return Err("tool.shapes is empty (leave it out for the ⊔ gripper)".to_owned());
+            }
+            Some(shapes) => shapes
+                .iter()
+                .enumerate()
+                .map(|(k, s)| s.shape().map_err(|e| format!("tool.shapes[{k}]: {e}")))
+                .collect::<Result<_, _>>()?,
+            None => GRIPPER_BOXES
+                .iter()
+                .map(|b| LinkShape::Box {
+                    pose: Isometry3::translation(b.centre[0], b.centre[1], b.centre[2]),
+                    half_extents: Vector3::from(b.size) / 2.0,
+                })
+                .collect(),
+        };
+        let tool_frame = match &d.tool.frame {
+            Some(f) if !(f.xyz.iter().chain(&f.rpy).all(|v| v.is_finite())) => {
+                return Err("tool.frame must be finite".to_owned());
+            }
+            Some(f) => f.isometry(),
+            None => Isometry3::translation(0.0, 0.0, TOOL_OFFSET),
+        };
         for name in [GRIPPER_LINK, TOOL_LINK] {
             if index.contains_key(name) && (name == TOOL_LINK || d.tool.gripper) {
                 return Err(format!(
@@ -207,13 +235,7 @@ impl Arm {
                 parent: Some(tip),
                 origin: mount,
                 motion: None,
-                shapes: GRIPPER_BOXES
-                    .iter()
-                    .map(|b| LinkShape::Box {
-                        pose: Isometry3::translation(b.centre[0], b.centre[1], b.centre[2]),
-                        half_extents: Vector3::from(b.size) / 2.0,
-                    })
-                    .collect(),
+                shapes: tool_shapes,
             });
         }
         let tool = links.len();
@@ -221,7 +243,7 @@ impl Arm {
         links.push(ArmLink {
             name: TOOL_LINK.to_owned(),
             parent: Some(tip),
-            origin: mount * Isometry3::translation(0.0, 0.0, TOOL_OFFSET),
+            origin: mount * tool_frame,
             motion: None,
             shapes: Vec::new(),
         });

@@ -98,8 +98,16 @@ pub struct RobotConfig {
     pub tool: ToolSpec,
 }
 
-/// Where the pusher tool sits on the tip link.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// Where the pusher tool sits on the tip link, and optionally the user's
+/// own tool in place of the ⊔ gripper:
+///
+/// ```toml
+/// [tool]
+/// mount = { xyz = [0, 0, 0.11], rpy = [0, 0, 0] }   # on the tip link
+/// frame = { xyz = [0, 0, 0.06], rpy = [0, 0, 0] }   # on the mount
+/// shapes = [{ type = "box", origin = { xyz = [0, 0, 0.03], rpy = [0, 0, 0] }, size = [0.08, 0.08, 0.06] }]
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ToolSpec {
     /// Where the ⊔ gripper's standoff is bolted, in the tip link's frame;
@@ -109,10 +117,21 @@ pub struct ToolSpec {
     /// fingers) and turn it so that z leaves the flange.
     #[serde(default = "PoseSpec::identity")]
     pub mount: PoseSpec,
-    /// Whether the ⊔ gripper's boxes are added to the tip; false when the
-    /// URDF carries the tool's geometry itself (the built-in UR5's does).
+    /// Whether the tool's shapes (the ⊔ gripper's boxes, or `shapes`) are
+    /// added to the tip; false when the URDF carries the tool's geometry
+    /// itself (the built-in UR5's does).
     #[serde(default = "yes")]
     pub gripper: bool,
+    /// The user's own tool in place of the ⊔ gripper: its collision shapes
+    /// (boxes, capsules, cylinders, spheres) in the mount's frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shapes: Option<Vec<ShapeSpec>>,
+    /// The tool frame in the mount's frame: the point the planner puts on
+    /// the branch, z along the push and x along the branch (default: the
+    /// ⊔ gripper's palm face, `TOOL_OFFSET` out along z, its slot along
+    /// x).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame: Option<PoseSpec>,
 }
 
 fn yes() -> bool {
@@ -124,6 +143,8 @@ impl Default for ToolSpec {
         Self {
             mount: PoseSpec::identity(),
             gripper: true,
+            shapes: None,
+            frame: None,
         }
     }
 }

@@ -261,6 +261,8 @@ pub fn description() -> RobotDescription {
         tool: ToolSpec {
             mount: PoseSpec::identity(),
             gripper: false,
+            shapes: None,
+            frame: None,
         },
     };
     describe(config, &robot, None, &[], "built in", 0).expect("the embedded UR5 is valid")
