@@ -285,6 +285,10 @@ pub struct EvalPlanArgs {
     /// The arm (as `treemanip plan --robot`).
     #[arg(long, default_value = "ur5")]
     robot: String,
+    /// Only these settings (`model/region`, comma-separated; default:
+    /// all six). For quick comparisons; write them with `--out` elsewhere.
+    #[arg(long, value_delimiter = ',')]
+    settings: Vec<String>,
 }
 
 /// The arm a `--robot` value names ([`treemanip::robot::catalog::resolve`]).
@@ -324,7 +328,18 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
     let planner = Planner::new(CollisionModel::new(arm.with_base(ur5::default_base())));
     let mut rows = Vec::new();
     let mut per_setting: Vec<(String, Vec<EpisodeResult>)> = Vec::new();
-    for setting in Setting::all() {
+    let settings: Vec<Setting> = Setting::all()
+        .into_iter()
+        .filter(|s| args.settings.is_empty() || args.settings.contains(&s.name()))
+        .collect();
+    if settings.is_empty() {
+        let known: Vec<String> = Setting::all().iter().map(Setting::name).collect();
+        bail!(
+            "--settings: none of {:?} is one of {known:?}",
+            args.settings
+        );
+    }
+    for setting in settings {
         let name = setting.name();
         let bar = crate::progress::bar(episodes.len() as u64, &name);
         // One episode at a time: plan times are the latency one request sees.
