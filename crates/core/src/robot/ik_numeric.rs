@@ -7,7 +7,7 @@
 //! moves toward the reference in the Jacobian's null space, so the answer
 //! is the solution near the reference rather than any.
 
-use nalgebra::{DMatrix, DVector, Isometry3, Vector3, Vector6};
+use nalgebra::{DVector, Isometry3, Matrix6, Vector3, Vector6};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -119,7 +119,7 @@ pub fn solve(
             {
                 return Some(q.as_slice().to_vec());
             }
-            let e = DVector::from_column_slice(error.as_slice());
+            let e = error;
             // Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e, and for a redundant chain a pull
             // toward the reference in the null space of J. A joint at a
             // limit that the step would push past is held there and the
@@ -128,27 +128,33 @@ pub fn solve(
             let mut held = vec![false; n];
             let mut step = DVector::zeros(n);
             for _ in 0..n.min(4) {
-                let mut free_jac = jac.clone();
-                for (k, h) in held.iter().enumerate() {
-                    if *h {
-                        free_jac.column_mut(k).fill(0.0);
-                    }
-                }
-                let jjt =
-                    &free_jac * free_jac.transpose() + DMatrix::identity(6, 6) * (lambda * lambda);
-                let Some(inverse) = jjt.try_inverse() else {
+                // The Jacobian with the held joints' columns zeroed, and
+                // J Jᵀ + λ² I (6 × 6, symmetric positive definite).
+                let column = |r: usize, k: usize| if held[k] { 0.0 } else { jac[(r, k)] };
+                let jjt = Matrix6::from_fn(|r, c| {
+                    (0..n).map(|k| column(r, k) * column(c, k)).sum::<f64>()
+                        + if r == c { lambda * lambda } else { 0.0 }
+                });
+                let Some(cholesky) = jjt.cholesky() else {
                     break;
                 };
-                let pseudo = free_jac.transpose() * inverse;
-                step = &pseudo * &e;
+                let transpose_times = |y: &Vector6<f64>| {
+                    DVector::from_fn(n, |k, _| (0..6).map(|r| column(r, k) * y[r]).sum::<f64>())
+                };
+                step = transpose_times(&cholesky.solve(&e));
                 if n > 6 {
-                    let mut null = DMatrix::identity(n, n) - &pseudo * &free_jac;
+                    // (I − J⁺J) v = v − Jᵀ (J Jᵀ + λ² I)⁻¹ J v, with the
+                    // held joints left where they are.
+                    let v = (&reference - &q) * options.null_space_gain;
+                    let jv =
+                        Vector6::from_fn(|r, _| (0..n).map(|k| column(r, k) * v[k]).sum::<f64>());
+                    let mut null_step = v - transpose_times(&cholesky.solve(&jv));
                     for (k, h) in held.iter().enumerate() {
                         if *h {
-                            null.row_mut(k).fill(0.0);
+                            null_step[k] = 0.0;
                         }
                     }
-                    step += null * ((&reference - &q) * options.null_space_gain);
+                    step += null_step;
                 }
                 let mut changed = false;
                 for (k, (lo, hi)) in limits.iter().enumerate() {
