@@ -435,7 +435,7 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
     }
     println!("{table}");
     println!(
-        "wrote {}/plan_eval.{{md,json}} and plan_fig10_*.svg in {:.1} s",
+        "wrote {}/plan_eval{suffix}.{{md,json}} and plan_fig10{suffix}_*.svg in {:.1} s",
         args.out.display(),
         started.elapsed().as_secs_f64()
     );
