@@ -22,6 +22,7 @@ mod robot_chain;
 mod robot_collision;
 mod robot_description;
 mod robot_geometry;
+mod robot_mimic;
 mod robot_model;
 mod robot_plan;
 mod robot_ros;

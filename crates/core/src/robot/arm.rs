@@ -125,15 +125,6 @@ impl Arm {
                 (None, Some(m)) => Some((m.variable, m.multiplier, m.offset)),
                 _ => None,
             };
-            if j.mimic.is_some() && j.kind != JointKind::Fixed {
-                // Edge checks bound each point's speed joint by joint; a
-                // second joint turning with the same variable about another
-                // axis would break that bound.
-                return Err(format!(
-                    "joint `{}` mimics another on the planning chain, which the planner does not support (mimic joints off the chain are held at zero)",
-                    j.name
-                ));
-            }
             let motion = source.filter(|_| j.kind != JointKind::Fixed).map(
                 |(variable, multiplier, offset)| Motion {
                     variable,
@@ -445,12 +436,39 @@ impl Arm {
     /// Whether `link` moves rigidly with the tip (the tip, links welded to
     /// it, the tool): these may touch the branch the tool holds.
     pub fn carried_by_tip(&self, link: usize) -> bool {
-        (0..self.dof()).all(|j| self.moved_by(link, j) == self.moved_by(self.tip, j))
+        self.driving_link(link) == self.driving_link(self.tip)
     }
 
     /// Whether `link` never moves (the base and what is bolted to it).
     pub fn fixed_to_base(&self, link: usize) -> bool {
-        (0..self.dof()).all(|j| !self.moved_by(link, j))
+        self.driving_link(link).is_none()
+    }
+
+    /// The nearest link at or above `link` that a joint moves: links with
+    /// the same one move rigidly together. (Comparing the sets of
+    /// variables that move them would not do: a mimic joint moves the
+    /// links below it with a variable that already moves those above.)
+    fn driving_link(&self, link: usize) -> Option<usize> {
+        let mut k = Some(link);
+        while let Some(l) = k {
+            if self.links[l].motion.is_some() {
+                return Some(l);
+            }
+            k = self.links[l].parent;
+        }
+        None
+    }
+
+    /// Whether `variable` drives more than one joint (a mimic joint on the
+    /// chain follows it). The edge checks then bound its motion by its
+    /// lever arm, which sums every joint it drives, instead of by one
+    /// joint's axis.
+    pub fn drives_several_joints(&self, variable: usize) -> bool {
+        self.links
+            .iter()
+            .filter(|l| l.motion.is_some_and(|m| m.variable == variable))
+            .count()
+            > 1
     }
 
     pub fn link_names(&self) -> impl Iterator<Item = &str> {

@@ -13,7 +13,9 @@ impl Arm {
     /// `slack`): the sum of the link offsets from the joint's frame down
     /// to the shape's link (plus a prismatic joint's travel) and the
     /// shape's own reach from its link's origin. The conservative-advancement
-    /// edge check never lets a joint move a point faster than this.
+    /// edge check never lets a joint move a point faster than this. A
+    /// variable that also drives mimic joints gets the sum over every
+    /// joint it drives, each times its multiplier.
     pub fn lever_arms(&self, slack: f64) -> JointVector {
         let mut arms = JointVector::zeros(self.dof());
         for (l, link) in self.links.iter().enumerate() {
@@ -24,9 +26,12 @@ impl Arm {
             // Walk up from the link, adding each offset, to every joint.
             let mut offset = reach;
             let mut k = l;
+            let mut sums = JointVector::zeros(self.dof());
+            let mut touched = [false; crate::robot::joint_vector::MAX_DOF];
             loop {
                 if let Some(m) = &self.links[k].motion {
-                    arms[m.variable] = arms[m.variable].max(offset + slack);
+                    sums[m.variable] += m.multiplier.abs() * offset;
+                    touched[m.variable] = true;
                     if m.prismatic {
                         let j = &self.joints[m.variable];
                         offset += j.lower.abs().max(j.upper.abs()) * m.multiplier.abs();
@@ -37,6 +42,9 @@ impl Arm {
                     Some(p) => k = p,
                     None => break,
                 }
+            }
+            for v in (0..self.dof()).filter(|&v| touched[v]) {
+                arms[v] = arms[v].max(sums[v] + slack);
             }
         }
         arms
@@ -60,7 +68,7 @@ impl Arm {
                 && m.prismatic
             {
                 let j = &self.joints[m.variable];
-                sum += j.lower.abs().max(j.upper.abs());
+                sum += j.lower.abs().max(j.upper.abs()) * m.multiplier.abs();
             }
             match link.parent {
                 Some(p) => k = p,

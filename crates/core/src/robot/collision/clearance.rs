@@ -95,13 +95,17 @@ impl SweepRates {
 
     /// How fast shapes `i` and `j` can approach each other: a joint that
     /// moves both carries them rigidly together, so only the joints that
-    /// move exactly one of them count.
+    /// move exactly one of them count (a variable driving a mimic joint
+    /// too may move one relative to the other: both rates count).
     fn relative(&self, model: &CollisionModel, i: usize, j: usize) -> f64 {
         let (mi, mj) = (&model.shapes[i].moved_by, &model.shapes[j].moved_by);
         (0..mi.len().min(self.by_joint[i].len()))
             .map(|k| match (mi[k], mj[k]) {
                 (true, false) => self.by_joint[i][k],
                 (false, true) => self.by_joint[j][k],
+                (true, true) if model.robot.drives_several_joints(k) => {
+                    self.by_joint[i][k] + self.by_joint[j][k]
+                }
                 _ => 0.0,
             })
             .sum()
@@ -131,6 +135,11 @@ impl CollisionModel {
                     if !slot.moved_by[i] || dq[i] == 0.0 {
                         return 0.0;
                     }
+                    if self.robot.drives_several_joints(i) {
+                        // Turns about more than one axis: its lever arm
+                        // bounds every joint it drives together.
+                        return lever[i] * dq[i];
+                    }
                     if axes[i].2 {
                         return dq[i];
                     }
@@ -138,8 +147,11 @@ impl CollisionModel {
                         .iter()
                         .map(|p| from_axis(&axes[i], p) + pad)
                         .fold(0.0, f64::max);
-                    let drift: f64 = (i + 1..dof)
-                        .filter(|&j| slot.moved_by[j])
+                    // Joints below i (later variables, and any variable
+                    // that also drives a mimic joint, which may sit below i).
+                    let below = |j: usize| j > i || (j != i && self.robot.drives_several_joints(j));
+                    let drift: f64 = (0..dof)
+                        .filter(|&j| slot.moved_by[j] && below(j))
                         .map(|j| lever[j] * dq[j])
                         .sum();
                     (reach + drift).min(lever[i]) * dq[i]

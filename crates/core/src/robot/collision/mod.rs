@@ -440,9 +440,14 @@ impl CollisionModel {
                 reach[i] = 1.0;
             }
         }
+        for i in (0..dof).filter(|&i| self.robot.drives_several_joints(i)) {
+            // Several axes: the lever arm bounds them together.
+            reach[i] = self.lever_arms[i] + margin;
+        }
         for slot in &self.shapes {
             let (points, pad) = clearance::bounding_points(slot, &poses[slot.link], margin);
-            for i in (0..dof).filter(|&i| slot.moved_by[i] && !axes[i].2) {
+            let single_axis = |i: usize| !axes[i].2 && !self.robot.drives_several_joints(i);
+            for i in (0..dof).filter(|&i| slot.moved_by[i] && single_axis(i)) {
                 for p in &points {
                     reach[i] = reach[i].max(clearance::from_axis(&axes[i], p) + pad);
                 }
