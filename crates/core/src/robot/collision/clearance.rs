@@ -103,7 +103,7 @@ impl SweepRates {
             .map(|k| match (mi[k], mj[k]) {
                 (true, false) => self.by_joint[i][k],
                 (false, true) => self.by_joint[j][k],
-                (true, true) if model.robot.drives_several_joints(k) => {
+                (true, true) if model.drives_several[k] => {
                     self.by_joint[i][k] + self.by_joint[j][k]
                 }
                 _ => 0.0,
@@ -135,7 +135,7 @@ impl CollisionModel {
                     if !slot.moved_by[i] || dq[i] == 0.0 {
                         return 0.0;
                     }
-                    if self.robot.drives_several_joints(i) {
+                    if self.drives_several[i] {
                         // Turns about more than one axis: its lever arm
                         // bounds every joint it drives together.
                         return lever[i] * dq[i];
@@ -149,7 +149,7 @@ impl CollisionModel {
                         .fold(0.0, f64::max);
                     // Joints below i (later variables, and any variable
                     // that also drives a mimic joint, which may sit below i).
-                    let below = |j: usize| j > i || (j != i && self.robot.drives_several_joints(j));
+                    let below = |j: usize| j > i || (j != i && self.drives_several[j]);
                     let drift: f64 = (0..dof)
                         .filter(|&j| slot.moved_by[j] && below(j))
                         .map(|j| lever[j] * dq[j])

@@ -306,6 +306,9 @@ pub struct CollisionModel {
     names: Vec<String>,
     /// [`Arm::lever_arms`], with [`LEVER_ARM_SLACK`].
     lever_arms: JointVector,
+    /// Per variable, [`Arm::drives_several_joints`] (asked on every edge
+    /// check, so found once here).
+    drives_several: [bool; MAX_DOF],
 }
 
 impl CollisionModel {
@@ -357,12 +360,15 @@ impl CollisionModel {
             }
         }
         let lever_arms = robot.lever_arms(LEVER_ARM_SLACK);
+        let drives_several =
+            std::array::from_fn(|i| i < robot.dof() && robot.drives_several_joints(i));
         Self {
             robot,
             shapes,
             self_pairs,
             names,
             lever_arms,
+            drives_several,
         }
     }
 
@@ -440,13 +446,13 @@ impl CollisionModel {
                 reach[i] = 1.0;
             }
         }
-        for i in (0..dof).filter(|&i| self.robot.drives_several_joints(i)) {
+        for i in (0..dof).filter(|&i| self.drives_several[i]) {
             // Several axes: the lever arm bounds them together.
             reach[i] = self.lever_arms[i] + margin;
         }
         for slot in &self.shapes {
             let (points, pad) = clearance::bounding_points(slot, &poses[slot.link], margin);
-            let single_axis = |i: usize| !axes[i].2 && !self.robot.drives_several_joints(i);
+            let single_axis = |i: usize| !axes[i].2 && !self.drives_several[i];
             for i in (0..dof).filter(|&i| slot.moved_by[i] && single_axis(i)) {
                 for p in &points {
                     reach[i] = reach[i].max(clearance::from_axis(&axes[i], p) + pad);
