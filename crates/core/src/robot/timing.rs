@@ -173,6 +173,12 @@ impl TimedPath {
         if t >= self.duration() {
             return (*self.s.last().unwrap(), 0.0, 0.0);
         }
+        self.state_within(t)
+    }
+
+    /// (s, ṡ, s̈) at a time `t` within the trajectory, from its grid
+    /// interval (the path acceleration constant there).
+    fn state_within(&self, t: f64) -> (f64, f64, f64) {
         let k = self.interval(t);
         let u = self.path_acceleration(k);
         let tau = t - self.t[k];
@@ -184,12 +190,7 @@ impl TimedPath {
     /// trajectory): within a grid interval the path acceleration is
     /// constant, as the timing assumes.
     pub fn sample(&self, t: f64) -> (DVector<f64>, DVector<f64>, DVector<f64>) {
-        let t = t.clamp(0.0, self.duration());
-        let k = self.interval(t);
-        let u = self.path_acceleration(k);
-        let tau = t - self.t[k];
-        let speed = self.speed[k] + u * tau;
-        let s = (self.s[k] + self.speed[k] * tau + 0.5 * u * tau * tau).min(self.s[k + 1]);
+        let (s, speed, u) = self.state_within(t.clamp(0.0, self.duration()));
         let (q, dq, ddq) = self.path.eval(s);
         let v = &dq * speed;
         let a = &ddq * (speed * speed) + &dq * u;

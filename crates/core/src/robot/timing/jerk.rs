@@ -161,8 +161,8 @@ impl JerkLimited {
         let grid = &self.timed.t;
         let mut times: Vec<f64> = grid
             .iter()
-            .chain(&grid.iter().map(|t| t + self.window).collect::<Vec<_>>())
             .copied()
+            .chain(grid.iter().map(|t| t + self.window))
             .collect();
         times.sort_by(f64::total_cmp);
         times.dedup();
