@@ -80,20 +80,28 @@ fn add_srdf_pairs(
                 ));
             }
         }
-        let (a, b) = (&p.link1, &p.link2);
-        let known = description
-            .disabled_pairs
-            .iter()
-            .any(|d| (&d.a == a && &d.b == b) || (&d.a == b && &d.b == a));
-        if !known {
-            description.disabled_pairs.push(DisabledPair {
-                a: a.clone(),
-                b: b.clone(),
-                reason: DisableReason::Srdf,
-            });
-        }
+        add_pair(
+            &mut description.disabled_pairs,
+            &p.link1,
+            &p.link2,
+            DisableReason::Srdf,
+        );
     }
     Ok(())
+}
+
+/// Adds the pair `a`–`b` (either order) to `pairs` unless it is there.
+fn add_pair(pairs: &mut Vec<DisabledPair>, a: &str, b: &str, reason: DisableReason) {
+    let known = pairs
+        .iter()
+        .any(|p| (p.a == a && p.b == b) || (p.a == b && p.b == a));
+    if !known {
+        pairs.push(DisabledPair {
+            a: a.to_owned(),
+            b: b.to_owned(),
+            reason,
+        });
+    }
 }
 
 /// Which file a problem of [`describe`] lies in.
@@ -176,16 +184,7 @@ pub fn describe(
                 ));
             }
         }
-        if !pairs
-            .iter()
-            .any(|p| (&p.a == a && &p.b == b) || (&p.a == b && &p.b == a))
-        {
-            pairs.push(DisabledPair {
-                a: a.clone(),
-                b: b.clone(),
-                reason: DisableReason::Configured,
-            });
-        }
+        add_pair(&mut pairs, a, b, DisableReason::Configured);
     }
     // Each link with shapes, on the chain link it rides on.
     let zero = vec![0.0; dof];
