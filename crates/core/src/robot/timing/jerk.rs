@@ -84,11 +84,6 @@ impl JerkLimited {
         (self.timed.duration() + self.window) * self.stretch
     }
 
-    /// The path this motion follows.
-    pub fn path(&self) -> &super::SplinePath {
-        &self.timed.path
-    }
-
     /// ∫₀^τ s of the unaveraged timing (s = 0 before it starts, its length
     /// after it ends).
     fn integral_at(&self, tau: f64) -> f64 {
