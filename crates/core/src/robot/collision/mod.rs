@@ -306,8 +306,7 @@ pub struct CollisionModel {
     names: Vec<String>,
     /// [`Arm::lever_arms`], with [`LEVER_ARM_SLACK`].
     lever_arms: JointVector,
-    /// Per variable, [`Arm::drives_several_joints`] (asked on every edge
-    /// check, so found once here).
+    /// Per variable, [`Arm::drives_several_joints`], found once here.
     drives_several: [bool; MAX_DOF],
 }
 
