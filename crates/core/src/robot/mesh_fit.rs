@@ -6,12 +6,16 @@
 //! `scripts/measure-ur5-meshes.py`, which sized the UR5's capsules):
 //!
 //! 1. the triangles are split into k slices (k = 1, 2, 3) by their
-//!    centroids along the mesh's main axis (principal component);
-//! 2. each slice gets the tightest capsule around every corner of its
+//!    centroids along each of the mesh's principal axes in turn (a link
+//!    shaped like an L, as most 7-joint arms' are, splits across its
+//!    main axis, not along it);
+//! 2. each group gets the tightest capsule around every corner of its
 //!    triangles on its own main axis: the radius is the largest distance
 //!    from that axis (through the centre of the corners' bounding box
 //!    across it), and the segment is as short as that radius allows;
-//! 3. the k with the least total capsule volume wins (a larger k only when
+//! 3. k-lines rounds move each triangle to the capsule whose segment is
+//!    nearest its farthest corner and refit, keeping the least volume;
+//! 4. the k whose capsules take the least room together wins (a larger k only when
 //!    it saves at least [`SPLIT_GAIN`] of the volume).
 //!
 //! A capsule is convex, so holding a triangle's three corners it holds the
@@ -64,8 +68,54 @@ fn capsule_volume(c: &Capsule) -> f64 {
     std::f64::consts::PI * r * r * (c.height() + 4.0 / 3.0 * r)
 }
 
-/// The main axis of `points` (unit; z when they are all one point).
-fn main_axis(points: &[Point3<f64>]) -> Vector3<f64> {
+/// Grid cells per side over which [`union_volume`] counts.
+const UNION_GRID: usize = 32;
+
+/// The volume of the capsules' union (m³): exact for one capsule, else
+/// counted on a [`UNION_GRID`]³ grid of cell centres over their bounding
+/// box (a few per cent; what splitting a link saves is the room the
+/// capsules take together, not the sum of their volumes, which counts
+/// overlaps twice).
+fn union_volume(capsules: &[Capsule]) -> f64 {
+    if let [one] = capsules {
+        return capsule_volume(one);
+    }
+    let (mut lo, mut hi) = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
+    for c in capsules {
+        let r = Vector3::repeat(c.radius);
+        lo = lo.inf(&(c.a.coords.inf(&c.b.coords) - r));
+        hi = hi.sup(&(c.a.coords.sup(&c.b.coords) + r));
+    }
+    if capsules.is_empty() {
+        return 0.0;
+    }
+    let cell = (hi - lo) / UNION_GRID as f64;
+    let mut inside = 0usize;
+    for i in 0..UNION_GRID {
+        for j in 0..UNION_GRID {
+            for k in 0..UNION_GRID {
+                let p = Point3::from(
+                    lo + cell.component_mul(&Vector3::new(
+                        i as f64 + 0.5,
+                        j as f64 + 0.5,
+                        k as f64 + 0.5,
+                    )),
+                );
+                if capsules.iter().any(|c| c.contains(&p)) {
+                    inside += 1;
+                }
+            }
+        }
+    }
+    inside as f64 * cell.x * cell.y * cell.z
+}
+
+/// The principal axes of `points`, largest spread first (unit; x, y, z
+/// when they are all one point).
+fn principal_axes(points: &[Point3<f64>]) -> [Vector3<f64>; 3] {
     let n = points.len().max(1) as f64;
     let mean = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
     let cov = points.iter().fold(Matrix3::zeros(), |m, p| {
@@ -73,13 +123,24 @@ fn main_axis(points: &[Point3<f64>]) -> Vector3<f64> {
         m + d * d.transpose()
     }) / n;
     let eig = SymmetricEigen::new(cov);
-    let k = eig.eigenvalues.imax();
-    let axis = eig.eigenvectors.column(k).into_owned();
-    if axis.norm() > 1e-12 && eig.eigenvalues[k] > 1e-18 {
-        axis.normalize()
-    } else {
-        Vector3::z()
+    if eig.eigenvalues.max() <= 1e-18 {
+        return [Vector3::z(), Vector3::x(), Vector3::y()];
     }
+    let mut order = [0, 1, 2];
+    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+    order.map(|k| {
+        let axis = eig.eigenvectors.column(k).into_owned();
+        if axis.norm() > 1e-12 {
+            axis.normalize()
+        } else {
+            Vector3::z()
+        }
+    })
+}
+
+/// The main axis of `points` (unit; z when they are all one point).
+fn main_axis(points: &[Point3<f64>]) -> Vector3<f64> {
+    principal_axes(points)[0]
 }
 
 /// The tightest capsule along `points`' main axis that holds them all.
@@ -148,6 +209,10 @@ pub fn distance_to_segment(p: &Point3<f64>, a: &Point3<f64>, b: &Point3<f64>) ->
     (p - (a + ab * t)).norm()
 }
 
+/// Lloyd rounds that move triangles to the capsule whose axis holds them
+/// closest and refit (k-lines clustering).
+const REFINE_ROUNDS: usize = 12;
+
 /// Fits one to [`MAX_CAPSULES`] capsules around `triangles` (see the
 /// module's documentation). `None` for an empty mesh.
 pub fn fit_capsules(triangles: &[[Point3<f64>; 3]]) -> Option<MeshFit> {
@@ -155,32 +220,22 @@ pub fn fit_capsules(triangles: &[[Point3<f64>; 3]]) -> Option<MeshFit> {
         return None;
     }
     let corners: Vec<Point3<f64>> = triangles.iter().flatten().copied().collect();
-    let u = main_axis(&corners);
-    let centroid = |t: &[Point3<f64>; 3]| (t[0].coords + t[1].coords + t[2].coords).dot(&u) / 3.0;
-    let (lo, hi) = triangles
-        .iter()
-        .map(centroid)
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
-            (a.min(c), b.max(c))
-        });
+    let axes = principal_axes(&corners);
     let mut best: Option<(Vec<Capsule>, f64)> = None;
     for k in 1..=MAX_CAPSULES {
-        let width = (hi - lo) / k as f64;
-        let mut slices: Vec<Vec<Point3<f64>>> = vec![Vec::new(); k];
-        for t in triangles {
-            let s = if width > 0.0 {
-                (((centroid(t) - lo) / width) as usize).min(k - 1)
-            } else {
-                0
-            };
-            slices[s].extend_from_slice(t);
+        // The best split into k capsules over the three starting axes.
+        let mut best_k: Option<(Vec<Capsule>, f64)> = None;
+        let starts = if k == 1 { &axes[..1] } else { &axes[..] };
+        for u in starts {
+            let groups = slices(triangles, u, k);
+            let (capsules, volume) = refine(triangles, groups);
+            if best_k.as_ref().is_none_or(|(_, v)| volume < *v) {
+                best_k = Some((capsules, volume));
+            }
         }
-        let capsules: Vec<Capsule> = slices
-            .iter()
-            .filter(|s| !s.is_empty())
-            .map(|s| enclosing_capsule(s))
-            .collect();
-        let volume: f64 = capsules.iter().map(capsule_volume).sum();
+        let Some((capsules, volume)) = best_k else {
+            continue;
+        };
         if best
             .as_ref()
             .is_none_or(|(_, v)| volume < v * (1.0 - SPLIT_GAIN))
@@ -195,6 +250,74 @@ pub fn fit_capsules(triangles: &[[Point3<f64>; 3]]) -> Option<MeshFit> {
         volume_ratio: hull.filter(|h| *h > 1e-12).map(|h| volume / h),
         triangles: triangles.len(),
     })
+}
+
+/// The triangles' indices in k slices of equal width by their centroids
+/// along `u`.
+fn slices(triangles: &[[Point3<f64>; 3]], u: &Vector3<f64>, k: usize) -> Vec<Vec<usize>> {
+    let centroid = |t: &[Point3<f64>; 3]| (t[0].coords + t[1].coords + t[2].coords).dot(u) / 3.0;
+    let (lo, hi) = triangles
+        .iter()
+        .map(centroid)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| {
+            (a.min(c), b.max(c))
+        });
+    let width = (hi - lo) / k as f64;
+    let mut groups = vec![Vec::new(); k];
+    for (i, t) in triangles.iter().enumerate() {
+        let s = if width > 0.0 {
+            (((centroid(t) - lo) / width) as usize).min(k - 1)
+        } else {
+            0
+        };
+        groups[s].push(i);
+    }
+    groups
+}
+
+/// Capsules around each group, then up to [`REFINE_ROUNDS`] rounds moving
+/// each triangle to the capsule whose segment is nearest its farthest
+/// corner; the round with the least total volume wins. Every round's
+/// capsules enclose every triangle, so any round is a valid fit.
+fn refine(triangles: &[[Point3<f64>; 3]], mut groups: Vec<Vec<usize>>) -> (Vec<Capsule>, f64) {
+    let fit = |groups: &[Vec<usize>]| -> Vec<Capsule> {
+        groups
+            .iter()
+            .filter(|g| !g.is_empty())
+            .map(|g| {
+                let points: Vec<Point3<f64>> = g.iter().flat_map(|&i| triangles[i]).collect();
+                enclosing_capsule(&points)
+            })
+            .collect()
+    };
+    let mut capsules = fit(&groups);
+    let mut best_volume = union_volume(&capsules);
+    let mut best = capsules.clone();
+    for _ in 0..REFINE_ROUNDS {
+        let mut next = vec![Vec::new(); capsules.len()];
+        for (i, t) in triangles.iter().enumerate() {
+            let reach = |c: &Capsule| {
+                t.iter()
+                    .map(|p| distance_to_segment(p, &c.a, &c.b))
+                    .fold(0.0, f64::max)
+            };
+            let nearest = (0..capsules.len())
+                .min_by(|&a, &b| reach(&capsules[a]).total_cmp(&reach(&capsules[b])))
+                .unwrap_or(0);
+            next[nearest].push(i);
+        }
+        if next == groups {
+            break;
+        }
+        groups = next;
+        capsules = fit(&groups);
+        let volume = union_volume(&capsules);
+        if volume < best_volume {
+            best_volume = volume;
+            best = capsules.clone();
+        }
+    }
+    (best, best_volume)
 }
 
 /// Volume of the convex hull of `points` (`None` when it is flat).
@@ -287,6 +410,53 @@ mod tests {
         ));
         let split: f64 = fit.capsules.iter().map(capsule_volume).sum();
         assert!(split < one * (1.0 - SPLIT_GAIN));
+    }
+
+    /// The side mesh of a cylinder of `radius` from `a` to `b`.
+    fn cylinder(a: Vector3<f64>, b: Vector3<f64>, radius: f64) -> Vec<[Point3<f64>; 3]> {
+        let axis = (b - a).normalize();
+        let helper = if axis.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let v = axis.cross(&helper).normalize();
+        let w = axis.cross(&v);
+        let ring = |end: &Vector3<f64>, k: usize| {
+            let t = k as f64 * std::f64::consts::TAU / 16.0;
+            Point3::from(end + (v * t.cos() + w * t.sin()) * radius)
+        };
+        (0..16)
+            .flat_map(|k| {
+                [
+                    [ring(&a, k), ring(&a, k + 1), ring(&b, k)],
+                    [ring(&a, k + 1), ring(&b, k + 1), ring(&b, k)],
+                ]
+            })
+            .collect()
+    }
+
+    /// A link shaped like a 7-joint arm's (a 6 cm tube along z with the
+    /// next joint's housing across it at the top, a T): one capsule needs
+    /// about 9 cm of radius, while a split across the main axis keeps every
+    /// capsule within a few millimetres of the tubes' own radius.
+    #[test]
+    fn a_t_shaped_link_splits_into_its_tubes() {
+        let mut triangles = cylinder(Vector3::zeros(), Vector3::new(0.0, 0.0, 0.2), 0.06);
+        triangles.extend(cylinder(
+            Vector3::new(0.0, -0.1, 0.25),
+            Vector3::new(0.0, 0.1, 0.25),
+            0.06,
+        ));
+        let one = enclosing_capsule(&triangles.iter().flatten().copied().collect::<Vec<_>>());
+        assert!(one.radius > 0.085, "one capsule r {}", one.radius);
+        let fit = fit_capsules(&triangles).unwrap();
+        assert!(fit.capsules.len() >= 2);
+        let widest = fit.capsules.iter().map(|c| c.radius).fold(0.0, f64::max);
+        assert!(widest < 0.07, "widest of the split r {widest}");
+        for p in triangles.iter().flatten() {
+            assert!(fit.capsules.iter().any(|c| inside(c, p)), "{p} outside");
+        }
     }
 
     #[test]
