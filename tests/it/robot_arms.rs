@@ -9,13 +9,13 @@ use std::time::Duration;
 
 use nalgebra::{Isometry3, Matrix4, Rotation3, UnitQuaternion, Vector3};
 use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
-use treemanip::robot::Arm;
 use treemanip::robot::catalog::{self, RobotSpec};
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use treemanip::robot::description::RobotDescription;
 use treemanip::robot::plan::APPROACH_OFFSET;
 use treemanip::robot::ros::JointTrajectory;
 use treemanip::robot::ur5;
+use treemanip::robot::{Arm, BaseStance, PROBE_PUSHES, UR5_REACH};
 
 /// The shipped descriptions (`robots/*.toml`).
 pub const SHIPPED: [&str; 4] = ["ur5", "ur10", "panda", "iiwa"];
@@ -51,9 +51,52 @@ fn every_shipped_arms_home_is_free_at_the_default_mount() {
 #[test]
 fn the_builtin_ur5s_reach_is_the_proposals_scale() {
     let ur5 = Arm::default().reach();
-    assert!((ur5 - 1.079_103_269_666_350_5).abs() < 1e-12, "{ur5}");
+    assert!((ur5 - UR5_REACH).abs() < 1e-12, "{ur5}");
     let ur10 = shipped("ur10").reach();
     assert!(ur10 > 1.4 * ur5, "the UR10 is the larger arm: {ur10}");
+}
+
+/// Where a mobile base stands comes from each arm's kinematics: the URs
+/// push from anywhere near and keep the UR5's own six stances (scaled);
+/// the iiwa, whose elbow folds against its limit when the wrist comes near
+/// the shoulder, stands farther back. Its UR5-scaled stance 0.47 m behind
+/// and 0.28 m below the grip carries out none of the test pushes; every
+/// stance it keeps carries out most.
+#[test]
+fn each_arm_stands_where_its_pushes_work() {
+    let own = |arm: &Arm| -> Vec<(f64, f64)> {
+        let scale = arm.reach() / UR5_REACH;
+        [0.3, 0.05, -0.2]
+            .iter()
+            .flat_map(|h| [0.5, 0.65].map(|d| (d * scale, h * scale)))
+            .collect()
+    };
+    for arm in [Arm::default(), shipped("ur10")] {
+        let got: Vec<(f64, f64)> = arm
+            .stances()
+            .iter()
+            .map(|s| (s.stand_off, s.height))
+            .collect();
+        assert_eq!(got, own(&arm), "{}", arm.name());
+    }
+    let iiwa = shipped("iiwa");
+    let scale = iiwa.reach() / UR5_REACH;
+    let close = BaseStance {
+        stand_off: 0.5 * scale,
+        height: 0.3 * scale,
+    };
+    assert_eq!(iiwa.push_score(&close), 0);
+    assert!(!iiwa.stances().contains(&close));
+    let mean_stand_off =
+        iiwa.stances().iter().map(|s| s.stand_off).sum::<f64>() / iiwa.stances().len() as f64;
+    assert!(mean_stand_off > 0.6 * scale, "{:?}", iiwa.stances());
+    for s in iiwa.stances() {
+        let score = iiwa.push_score(s);
+        assert!(
+            score * 3 >= PROBE_PUSHES * 2,
+            "{s:?}: {score} of {PROBE_PUSHES}"
+        );
+    }
 }
 
 /// An arm to plan with, and where its URDF is for the independent

@@ -6,6 +6,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
 use crate::robot::rrt::Config;
+use crate::robot::{Arm, UR5_REACH};
 use crate::sim::{GRIP_OFFSET, Push};
 use crate::tree::Tree;
 
@@ -67,29 +68,15 @@ impl BasePose {
     }
 }
 
-/// Horizontal distances (m) from the grip point at which the base is tried,
-/// for the built-in UR5 (other arms scale them by their reach, see
-/// [`proposals`]): the UR5 reaches about 0.85 m, and pushes work best
-/// mid-reach.
-const STAND_OFF: [f64; 2] = [0.5, 0.65];
-/// Sideways offsets (m) across the push.
+/// Sideways offsets (m, UR5 scale) across the push.
 const SIDEWAYS: [f64; 3] = [0.0, 0.2, -0.2];
-/// Base heights below the grip point (m). The third, a base above the
-/// grip (reaching down to it), serves the 7-joint arms: on the Panda's
-/// model/region evaluation it took the executed error from 3.75 to
-/// 3.51 cm (the iiwa's from 4.63 to 4.12; the UR5's stayed at 2.07);
-/// a fourth (−0.45) or a third stand-off only cost time.
-const BELOW: [f64; 3] = [0.3, 0.05, -0.2];
 
-/// The built-in UR5's [`crate::robot::Arm::reach`] (m), which the
-/// proposals' distances are for.
-const UR5_REACH: f64 = 1.079_103_269_666_350_5;
-
-/// Candidate base poses for `push` by an arm of reach `reach`
-/// ([`crate::robot::Arm::reach`]), most promising first, all inside
-/// `region` (duplicates after clamping removed).
-pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push, reach: f64) -> Vec<BasePose> {
-    let scale = reach / UR5_REACH;
+/// Candidate base poses for `push` by `arm`: its [`Arm::stances`] behind
+/// the grip point along the push, each straight behind it and to either
+/// side, most promising first, all inside `region` (duplicates after
+/// clamping removed).
+pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push, arm: &Arm) -> Vec<BasePose> {
+    let scale = arm.reach() / UR5_REACH;
     let Some(branch) = tree.branch_direction(push.node) else {
         return Vec::new();
     };
@@ -105,25 +92,22 @@ pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push, reach: f64) -> V
     let ahead = ahead.normalize();
     let across = Vector3::z().cross(&ahead);
     let mut out: Vec<BasePose> = Vec::new();
-    for &below in &BELOW {
-        for &stand_off in &STAND_OFF {
-            for &side in &SIDEWAYS {
-                let wanted = grip.coords - ahead * (stand_off * scale) + across * (side * scale)
-                    - Vector3::z() * (below * scale);
-                let position = wanted.sup(&region.min).inf(&region.max);
-                let facing = grip.coords - position;
-                let mut yaw = facing.y.atan2(facing.x);
-                if let Some((lo, hi)) = region.yaw {
-                    yaw = yaw.clamp(lo, hi);
-                }
-                let pose = BasePose::upright([position.x, position.y, position.z], yaw);
-                let duplicate = out.iter().any(|b| {
-                    (Vector3::from(b.position) - position).norm() < 0.02
-                        && (b.yaw - yaw).abs() < 0.05
-                });
-                if !duplicate {
-                    out.push(pose);
-                }
+    for stance in arm.stances() {
+        for &side in &SIDEWAYS {
+            let wanted = grip.coords - ahead * stance.stand_off + across * (side * scale)
+                - Vector3::z() * stance.height;
+            let position = wanted.sup(&region.min).inf(&region.max);
+            let facing = grip.coords - position;
+            let mut yaw = facing.y.atan2(facing.x);
+            if let Some((lo, hi)) = region.yaw {
+                yaw = yaw.clamp(lo, hi);
+            }
+            let pose = BasePose::upright([position.x, position.y, position.z], yaw);
+            let duplicate = out.iter().any(|b| {
+                (Vector3::from(b.position) - position).norm() < 0.02 && (b.yaw - yaw).abs() < 0.05
+            });
+            if !duplicate {
+                out.push(pose);
             }
         }
     }

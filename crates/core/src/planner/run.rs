@@ -72,7 +72,7 @@ impl Run<'_> {
                 start: f.start,
             }],
             (None, Stance::Region(region)) => {
-                base::proposals(region, &self.query.tree, push, self.planner.robot().reach())
+                base::proposals(region, &self.query.tree, push, self.planner.robot())
                     .into_iter()
                     .filter_map(|pose| {
                         let arm = self.planner.placed_at(&pose.isometry());
@@ -252,7 +252,7 @@ pub(super) fn reach_in_region(
     push: &Push,
 ) -> Result<(), Outcome> {
     let mut outcome = Outcome::Unreachable;
-    for pose in base::proposals(region, tree, push, planner.robot().reach()) {
+    for pose in base::proposals(region, tree, push, planner.robot()) {
         let arm = planner.placed_at(&pose.isometry());
         match reach(&arm, tree, rest, push, &arm.robot.home()) {
             Ok(_) => return Ok(()),

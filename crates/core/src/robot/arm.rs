@@ -30,6 +30,8 @@ use super::ur_kinematics::UrKinematics;
 use super::ur5::{GRIPPER_BOXES, TOOL_OFFSET};
 
 mod reach;
+mod stance;
+pub use stance::{BaseStance, PROBE_PUSHES, UR5_REACH};
 
 /// World poses of the links, in the arm's link order: on the stack for
 /// arms of up to 24 links, since the collision checker computes them for
@@ -102,6 +104,8 @@ pub struct Arm {
     disabled_pairs: Vec<(String, String)>,
     /// World pose of the chain's base link.
     pub base: Isometry3<f64>,
+    /// Where a mobile base stands for a push ([`Arm::stances`]).
+    stances: std::sync::OnceLock<Vec<BaseStance>>,
 }
 
 impl Arm {
@@ -297,6 +301,7 @@ impl Arm {
                 .map(|p| (p.a.clone(), p.b.clone()))
                 .collect(),
             base: Isometry3::identity(),
+            stances: stance::unscored(),
         })
     }
 

@@ -27,4 +27,4 @@ pub mod trajectory;
 pub mod ur5;
 pub mod ur_kinematics;
 
-pub use arm::Arm;
+pub use arm::{Arm, BaseStance, PROBE_PUSHES, UR5_REACH};

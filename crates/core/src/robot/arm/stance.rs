@@ -1,0 +1,145 @@
+//! Where an arm should stand for a straight push: the stand-offs and
+//! heights a mobile base tries, found from the arm's own kinematics.
+//!
+//! The paper's UR5 pushes well from 0.5-0.65 m behind the grip point at
+//! most heights, and other arms used to get those distances scaled by their
+//! reach. A 7-joint arm with a spherical shoulder and wrist (KUKA's iiwa,
+//! Franka's Panda) is different: its elbow angle is fixed by the
+//! shoulder-to-wrist distance, so standing close folds the elbow against
+//! its limit partway through the push. From 0.47 m and 0.28 m below the
+//! grip, none of 45 test pushes of the iiwa stayed on one IK branch; from
+//! 0.75 m every one did.
+//!
+//! So each arm scores a grid of stances ([`STAND_OFFS`] × [`HEIGHTS`],
+//! scaled by its reach) by the share of [`PROBE_PUSHES`] test pushes (the
+//! tool level, tilted up or down, turned left or right, its slot upright or
+//! level) whose pre-contact pose has an IK solution from which the
+//! straight push stays on one branch, as the planner's push check asks (no
+//! tree: kinematics only), and keeps the best [`STANCES`]. Ties keep the
+//! UR5's own stances first, so arms that reach everywhere (the URs) stand
+//! where the UR5 always has. The scores are computed once per arm, on the
+//! first base-region plan (about 0.2 s for a 7-joint arm).
+
+use std::sync::OnceLock;
+
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+use super::Arm;
+use crate::robot::plan::{APPROACH_OFFSET, PUSH_MAX_JOINT_STEP, PUSH_STEP};
+
+/// Horizontal distance from the base to the grip point, and the grip
+/// point's height above the base (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BaseStance {
+    pub stand_off: f64,
+    pub height: f64,
+}
+
+/// The built-in UR5's [`Arm::reach`] (m): the distances below are for it,
+/// and other arms scale them by their reach.
+pub const UR5_REACH: f64 = 1.079_103_269_666_350_5;
+/// Stand-offs tried (m, UR5 scale). The UR5's own are 0.5 and 0.65.
+pub const STAND_OFFS: [f64; 4] = [0.5, 0.65, 0.35, 0.8];
+/// Grip heights above the base tried (m, UR5 scale). The UR5's own are 0.3,
+/// 0.05 and −0.2 (the last, a base above the grip reaching down, serves
+/// 7-joint arms).
+pub const HEIGHTS: [f64; 4] = [0.3, 0.05, -0.2, 0.55];
+/// Stances kept per arm.
+pub const STANCES: usize = 6;
+/// Test pushes per stance: 3 tilts × 3 turns × 2 slot orientations.
+pub const PROBE_PUSHES: usize = 18;
+/// How far each test push goes past contact (m): a typical push.
+const PROBE_PUSH: f64 = 0.15;
+
+/// The grid in the order ties are broken: the UR5's six stances first
+/// (heights outermost, as it always tried them), then the rest.
+fn candidates(scale: f64) -> Vec<BaseStance> {
+    let mut out = Vec::new();
+    for own in [true, false] {
+        for (h, &height) in HEIGHTS.iter().enumerate() {
+            for (s, &stand_off) in STAND_OFFS.iter().enumerate() {
+                if (h < 3 && s < 2) == own {
+                    out.push(BaseStance {
+                        stand_off: stand_off * scale,
+                        height: height * scale,
+                    });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The test pushes' tool orientations for a grip straight ahead (+x):
+/// tool z along the push, x along the branch.
+fn probe_rotations() -> Vec<UnitQuaternion<f64>> {
+    let mut out = Vec::with_capacity(PROBE_PUSHES);
+    for tilt in [-0.5f64, 0.0, 0.5] {
+        for turn in [-0.4f64, 0.0, 0.4] {
+            for roll in [0.0, std::f64::consts::FRAC_PI_2] {
+                let z = Vector3::new(tilt.cos() * turn.cos(), tilt.cos() * turn.sin(), tilt.sin());
+                let up = (Vector3::z() - z * z.z).normalize();
+                let side = z.cross(&up);
+                let x = up * f64::cos(roll) + side * f64::sin(roll);
+                let y = z.cross(&x);
+                out.push(UnitQuaternion::from_rotation_matrix(
+                    &Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z])),
+                ));
+            }
+        }
+    }
+    out
+}
+
+impl Arm {
+    /// The stances a mobile base tries for this arm, best first (see the
+    /// module's documentation); computed on the first call.
+    pub fn stances(&self) -> &[BaseStance] {
+        self.stances.get_or_init(|| {
+            let scale = self.reach() / UR5_REACH;
+            let mut scored: Vec<(usize, BaseStance)> = candidates(scale)
+                .into_iter()
+                .map(|s| (self.push_score(&s), s))
+                .collect();
+            // Stable: equal scores keep the candidates' order.
+            scored.sort_by(|a, b| b.0.cmp(&a.0));
+            scored.into_iter().take(STANCES).map(|(_, s)| s).collect()
+        })
+    }
+
+    /// How many of the [`PROBE_PUSHES`] test pushes this arm can carry
+    /// out from `stance` (base upright at its own pose, facing +x).
+    pub fn push_score(&self, stance: &BaseStance) -> usize {
+        let home = self.home();
+        let grip = Vector3::new(stance.stand_off, 0.0, stance.height);
+        let steps = ((PROBE_PUSH + APPROACH_OFFSET) / PUSH_STEP).ceil() as usize;
+        probe_rotations()
+            .iter()
+            .filter(|rotation| {
+                let z = *rotation * Vector3::z();
+                let start = grip - z * APPROACH_OFFSET;
+                let at = |d: f64| {
+                    self.base * Isometry3::from_parts(Translation3::from(start + z * d), **rotation)
+                };
+                self.inverse_kinematics(&at(0.0), &home).iter().any(|q| {
+                    let mut previous = *q;
+                    (1..=steps).all(|k| {
+                        let Some(next) =
+                            self.inverse_kinematics_near(&at(k as f64 * PUSH_STEP), &previous)
+                        else {
+                            return false;
+                        };
+                        let on_branch = next.max_abs_diff(&previous) <= PUSH_MAX_JOINT_STEP;
+                        previous = next;
+                        on_branch
+                    })
+                })
+            })
+            .count()
+    }
+}
+
+/// An empty cache, for [`Arm`]'s constructor.
+pub(super) fn unscored() -> OnceLock<Vec<BaseStance>> {
+    OnceLock::new()
+}
