@@ -102,7 +102,7 @@ impl Arm {
                 .map(|s| (self.push_score(&s), s))
                 .collect();
             // Stable: equal scores keep the candidates' order.
-            scored.sort_by(|a, b| b.0.cmp(&a.0));
+            scored.sort_by_key(|s| std::cmp::Reverse(s.0));
             scored.into_iter().take(STANCES).map(|(_, s)| s).collect()
         })
     }
