@@ -99,6 +99,32 @@ fn each_arm_stands_where_its_pushes_work() {
     }
 }
 
+/// A 7-joint arm swings along its self-motion: every configuration found
+/// holds the tool where the first did (to 1e-6 m and rad) yet is another
+/// configuration, and the swings reach both sides; a 6-joint arm has none.
+#[test]
+fn a_redundant_arm_swings_along_its_self_motion() {
+    for name in ["panda", "iiwa"] {
+        let arm = shipped(name);
+        let q = arm.home();
+        let tool = arm.tool_pose(&q);
+        let swings = arm.self_motions(&q, &[-0.5, 0.5, -1.0, 1.0]);
+        assert!(swings.len() >= 3, "{name}: {} swings", swings.len());
+        for s in &swings {
+            let pose = arm.tool_pose(s);
+            let moved = (pose.translation.vector - tool.translation.vector).norm();
+            let turned = (pose.rotation.inverse() * tool.rotation).angle();
+            assert!(
+                moved < 1e-6 && turned < 1e-6,
+                "{name}: {moved} m, {turned} rad"
+            );
+            assert!(s.max_abs_diff(&q) > 0.05, "{name}: the same configuration");
+        }
+    }
+    let ur5 = Arm::default();
+    assert!(ur5.self_motions(&ur5.home(), &[0.5]).is_empty());
+}
+
 /// An arm to plan with, and where its URDF is for the independent
 /// kinematics (`@EXAMPLE_ROBOT_DATA@` and `@PYBULLET_DATA@` filled in by
 /// the Python side).

@@ -30,6 +30,7 @@ use super::ur_kinematics::UrKinematics;
 use super::ur5::{GRIPPER_BOXES, TOOL_OFFSET};
 
 mod reach;
+mod self_motion;
 mod stance;
 pub use stance::{BaseStance, PROBE_PUSHES, UR5_REACH};
 

@@ -10,7 +10,9 @@
 //!    turned by π about z is tried too.
 //! 2. **IK**: all solutions of both poses within limits (closed form for
 //!    UR kinematics, numerical from several starts for any other arm).
-//! 3. **Goal check**: solutions in collision are dropped. The gripper may
+//! 3. **Goal check**: solutions in collision are dropped (a 7-joint arm's
+//!    first swing along their self-motion, and free swings take their
+//!    place). The gripper may
 //!    touch the contacted branch and the branches leaving node j; the arm's
 //!    links may touch nothing.
 //! 4. **Push check**: the tool moves in a straight line by |T| + 5 cm along
@@ -57,6 +59,10 @@ pub const PUSH_MAX_JOINT_STEP: f64 = 0.15;
 pub const PUSH_SPEED: f64 = 0.05;
 /// Spacing of the deformed-tree snapshots used while pushing (m).
 pub const PUSH_SNAPSHOT: f64 = 0.01;
+/// Swings along a redundant arm's self-motion tried for a pre-contact
+/// configuration in collision (rad along the unit null-space direction,
+/// [`crate::robot::Arm::self_motions`]).
+pub const SELF_MOTION_SWINGS: [f64; 4] = [-0.5, 0.5, -1.0, 1.0];
 /// Pre-contact configurations (nearest the start first) whose push is
 /// checked and handed to RRT* as goals, at most.
 pub const PUSH_GOALS: usize = 4;
@@ -199,9 +205,22 @@ pub fn reach(
         return Err(Outcome::Unreachable);
     }
     let scene = PlanningScene::new(model, obstacles, near_contact(tree, push.node));
+    // A redundant arm's colliding solutions swing along their self-motion
+    // to free ones where they can.
     let free: Vec<Config> = goals
         .into_iter()
-        .filter(|g| scene.config_valid(g))
+        .flat_map(|g| {
+            if scene.config_valid(&g) {
+                vec![g]
+            } else {
+                model
+                    .robot
+                    .self_motions(&g, &SELF_MOTION_SWINGS)
+                    .into_iter()
+                    .filter(|q| scene.config_valid(q))
+                    .collect()
+            }
+        })
         .collect();
     if free.is_empty() {
         return Err(Outcome::GoalInCollision);
