@@ -329,6 +329,13 @@ pub fn link_geometry(
                     geometry
                         .shapes
                         .extend(fit.capsules.into_iter().map(LinkShape::Capsule));
+                    geometry
+                        .shapes
+                        .extend(fit.cylinder.map(|c| LinkShape::Cylinder {
+                            pose: c.pose,
+                            radius: c.radius,
+                            half_length: c.half_length,
+                        }));
                 }
             }
         }
