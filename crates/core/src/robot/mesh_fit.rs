@@ -51,10 +51,16 @@ impl Capsule {
 /// Fewest capsules unless more save this fraction of the volume.
 pub const SPLIT_GAIN: f64 = 0.15;
 /// A cylinder replaces the capsules only when it saves this fraction of
-/// their volume: capsules collide in closed form and a tube's capsule is
-/// only about 15 % larger than its cylinder, while a squat base's is
-/// 40 % or more.
+/// their volume (a tube's capsule is only about 15 % larger than its
+/// cylinder, while a squat base's is 40 % or more) and is
+/// [`CYLINDER_NARROWER`] than the widest of them.
 pub const CYLINDER_GAIN: f64 = 0.3;
+/// How much narrower than the widest capsule a cylinder must be. Capsules
+/// collide in closed form, cylinders through GJK (the fence query took
+/// 25 % longer with a UR's wrist flange as a cylinder as wide as its
+/// capsule), and a flat disc's few thin capsules hug it closer sideways,
+/// where the links above it pass.
+pub const CYLINDER_NARROWER: f64 = 0.95;
 /// Most capsules per link.
 pub const MAX_CAPSULES: usize = 3;
 
@@ -81,7 +87,8 @@ impl Cylinder {
 
 /// The shapes fitted to one mesh: capsules, or for a squat mesh (a base
 /// puck, whose enclosing capsule would bulge a dome over its flat top) one
-/// cylinder when it takes [`CYLINDER_GAIN`] less room than the capsules.
+/// cylinder when it takes [`CYLINDER_GAIN`] less room than the capsules
+/// and is narrower.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeshFit {
     pub capsules: Vec<Capsule>,
@@ -175,28 +182,46 @@ fn main_axis(points: &[Point3<f64>]) -> Vector3<f64> {
     principal_axes(points)[0]
 }
 
-/// The tightest capsule along `points`' main axis that holds them all.
-pub fn enclosing_capsule(points: &[Point3<f64>]) -> Capsule {
-    let u = main_axis(points);
-    // Two axes across u.
+/// Two unit axes `v`, `w` across `u` (right-handed u, v, w) and the
+/// extent of `points` along u, v and w.
+struct Extent {
+    v: Vector3<f64>,
+    w: Vector3<f64>,
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
+
+/// Two unit axes across unit `u`, with it a right-handed frame (u, v, w).
+fn across(u: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
     let helper = if u.x.abs() < 0.9 {
         Vector3::x()
     } else {
         Vector3::y()
     };
     let v = u.cross(&helper).normalize();
-    let w = u.cross(&v);
-    // The axis line passes through the middle of the corners' extent
-    // across it.
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    (v, u.cross(&v))
+}
+
+fn extent(points: &[Point3<f64>], u: &Vector3<f64>) -> Extent {
+    let (v, w) = across(u);
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in points {
-        for (k, e) in [v, w].iter().enumerate() {
+        for (k, e) in [*u, v, w].iter().enumerate() {
             let s = p.coords.dot(e);
             lo[k] = lo[k].min(s);
             hi[k] = hi[k].max(s);
         }
     }
-    let centre = v * 0.5 * (lo[0] + hi[0]) + w * 0.5 * (lo[1] + hi[1]);
+    Extent { v, w, lo, hi }
+}
+
+/// The tightest capsule along `points`' main axis that holds them all.
+pub fn enclosing_capsule(points: &[Point3<f64>]) -> Capsule {
+    let u = main_axis(points);
+    // The axis line passes through the middle of the corners' extent
+    // across it.
+    let Extent { v, w, lo, hi } = extent(points, &u);
+    let centre = v * 0.5 * (lo[1] + hi[1]) + w * 0.5 * (lo[2] + hi[2]);
     let across = |p: &Point3<f64>| {
         let d = p.coords - centre;
         (d - u * d.dot(&u)).norm()
@@ -283,7 +308,11 @@ pub fn fit_capsules(triangles: &[[Point3<f64>; 3]]) -> Option<MeshFit> {
         .chain(&[Vector3::x(), Vector3::y(), Vector3::z()])
         .map(|u| enclosing_cylinder(&corners, u))
         .min_by(|a, b| a.volume().total_cmp(&b.volume()))
-        .filter(|c| c.volume() < volume * (1.0 - CYLINDER_GAIN));
+        .filter(|c| {
+            c.volume() < volume * (1.0 - CYLINDER_GAIN)
+                && c.radius
+                    <= CYLINDER_NARROWER * capsules.iter().map(|k| k.radius).fold(0.0, f64::max)
+        });
     let (capsules, volume) = match &cylinder {
         Some(c) => (Vec::new(), c.volume()),
         None => (capsules, volume),
@@ -301,21 +330,7 @@ pub fn fit_capsules(triangles: &[[Point3<f64>; 3]]) -> Option<MeshFit> {
 /// through the middle of their extent across it, the radius their largest
 /// distance from it, the length their extent along it.
 fn enclosing_cylinder(points: &[Point3<f64>], u: &Vector3<f64>) -> Cylinder {
-    let helper = if u.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let v = u.cross(&helper).normalize();
-    let w = u.cross(&v);
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for p in points {
-        for (k, e) in [*u, v, w].iter().enumerate() {
-            let s = p.coords.dot(e);
-            lo[k] = lo[k].min(s);
-            hi[k] = hi[k].max(s);
-        }
-    }
+    let Extent { v, w, lo, hi } = extent(points, u);
     let centre = (*u * (lo[0] + hi[0]) + v * (lo[1] + hi[1]) + w * (lo[2] + hi[2])) * 0.5;
     let radius = points
         .iter()
@@ -496,14 +511,7 @@ mod tests {
 
     /// The side mesh of a cylinder of `radius` from `a` to `b`.
     fn cylinder(a: Vector3<f64>, b: Vector3<f64>, radius: f64) -> Vec<[Point3<f64>; 3]> {
-        let axis = (b - a).normalize();
-        let helper = if axis.x.abs() < 0.9 {
-            Vector3::x()
-        } else {
-            Vector3::y()
-        };
-        let v = axis.cross(&helper).normalize();
-        let w = axis.cross(&v);
+        let (v, w) = across(&(b - a).normalize());
         let ring = |end: &Vector3<f64>, k: usize| {
             let t = k as f64 * std::f64::consts::TAU / 16.0;
             Point3::from(end + (v * t.cos() + w * t.sin()) * radius)

@@ -6,9 +6,9 @@
 //! reach. A 7-joint arm with a spherical shoulder and wrist (KUKA's iiwa,
 //! Franka's Panda) is different: its elbow angle is fixed by the
 //! shoulder-to-wrist distance, so standing close folds the elbow against
-//! its limit partway through the push. From 0.47 m and 0.28 m below the
-//! grip, none of 45 test pushes of the iiwa stayed on one IK branch; from
-//! 0.75 m every one did.
+//! its limit partway through the push. From its UR5-scaled stance, 0.47 m
+//! behind and 0.28 m below the grip, the iiwa carries out none of the test
+//! pushes below; every stance it keeps carries out at least two thirds.
 //!
 //! So each arm scores a grid of stances ([`STAND_OFFS`] × [`HEIGHTS`],
 //! scaled by its reach) by the share of [`PROBE_PUSHES`] test pushes (the
