@@ -39,6 +39,7 @@ use std::time::Duration;
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
+use super::Arm;
 use super::collision::{Allowed, CollisionModel, TreeObstacles};
 use super::execution::{Execution, ExecutionOptions, execution};
 use super::rrt::{Config, MotionValidator, RrtError, RrtStarOptions, distance, rrt_star, shortcut};
@@ -230,7 +231,7 @@ pub fn reach(
     let anywhere = |_: &Config, _: &Config, _: f64| true;
     let feasible: Vec<Config> = free
         .into_iter()
-        .filter(|g| push_line(model, &anywhere, g, &direction, travel).is_some())
+        .filter(|g| push_line(&model.robot, &anywhere, g, &direction, travel).is_some())
         .collect();
     if feasible.is_empty() {
         return Err(Outcome::PushInfeasible);
@@ -280,7 +281,7 @@ pub fn execute(
     by_distance.sort_by(|a, b| distance(start, a).total_cmp(&distance(start, b)));
     let pushes: Vec<(Config, Vec<Config>)> = by_distance
         .into_iter()
-        .filter_map(|g| push_line(model, &edge_free, g, &direction, travel).map(|l| (*g, l)))
+        .filter_map(|g| push_line(&model.robot, &edge_free, g, &direction, travel).map(|l| (*g, l)))
         .take(PUSH_GOALS)
         .collect();
     if pushes.is_empty() {
@@ -472,7 +473,7 @@ fn retreat_line(
 ) -> Vec<Config> {
     let steps = (RETREAT / RETREAT_STEP).round() as usize;
     tool_line(
-        model,
+        &model.robot,
         goal,
         direction,
         steps,
@@ -488,7 +489,7 @@ fn retreat_line(
 /// accepted by `step_free(previous, next, distance)`; `goal` first, up to
 /// the first step that fails.
 fn tool_line(
-    model: &CollisionModel,
+    arm: &Arm,
     goal: &Config,
     direction: &Vector3<f64>,
     steps: usize,
@@ -496,7 +497,7 @@ fn tool_line(
     max_jump: f64,
     step_free: &dyn Fn(&Config, &Config, f64) -> bool,
 ) -> Vec<Config> {
-    let start_pose = model.robot.tool_pose(goal);
+    let start_pose = arm.tool_pose(goal);
     let mut line = vec![*goal];
     for k in 1..=steps {
         let distance = distance(k);
@@ -505,7 +506,7 @@ fn tool_line(
             start_pose.rotation,
         );
         let previous = *line.last().expect("non-empty");
-        let Some(next) = model.robot.inverse_kinematics_near(&pose, &previous) else {
+        let Some(next) = arm.inverse_kinematics_near(&pose, &previous) else {
             break;
         };
         let jump = next.max_abs_diff(&previous);
@@ -521,8 +522,8 @@ fn tool_line(
 /// [`PUSH_STEP`], or `None` when IK breaks (no solution, or a jump to
 /// another IK branch) or `edge_free(from, to, distance travelled)` refuses
 /// a step.
-fn push_line(
-    model: &CollisionModel,
+pub(crate) fn push_line(
+    arm: &Arm,
     edge_free: &dyn Fn(&Config, &Config, f64) -> bool,
     goal: &Config,
     direction: &Vector3<f64>,
@@ -530,7 +531,7 @@ fn push_line(
 ) -> Option<Vec<Config>> {
     let steps = (travel / PUSH_STEP).ceil() as usize;
     let line = tool_line(
-        model,
+        arm,
         goal,
         direction,
         steps,

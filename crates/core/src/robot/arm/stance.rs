@@ -25,7 +25,8 @@ use std::sync::OnceLock;
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use super::Arm;
-use crate::robot::plan::{APPROACH_OFFSET, PUSH_MAX_JOINT_STEP, PUSH_STEP};
+use crate::robot::joint_vector::JointVector;
+use crate::robot::plan::{APPROACH_OFFSET, push_line};
 
 /// Horizontal distance from the base to the grip point, and the grip
 /// point's height above the base (m).
@@ -112,27 +113,20 @@ impl Arm {
     pub fn push_score(&self, stance: &BaseStance) -> usize {
         let home = self.home();
         let grip = Vector3::new(stance.stand_off, 0.0, stance.height);
-        let steps = ((PROBE_PUSH + APPROACH_OFFSET) / PUSH_STEP).ceil() as usize;
+        let anywhere = |_: &JointVector, _: &JointVector, _: f64| true;
         probe_rotations()
             .iter()
             .filter(|rotation| {
                 let z = *rotation * Vector3::z();
-                let start = grip - z * APPROACH_OFFSET;
-                let at = |d: f64| {
-                    self.base * Isometry3::from_parts(Translation3::from(start + z * d), **rotation)
-                };
-                self.inverse_kinematics(&at(0.0), &home).iter().any(|q| {
-                    let mut previous = *q;
-                    (1..=steps).all(|k| {
-                        let Some(next) =
-                            self.inverse_kinematics_near(&at(k as f64 * PUSH_STEP), &previous)
-                        else {
-                            return false;
-                        };
-                        let on_branch = next.max_abs_diff(&previous) <= PUSH_MAX_JOINT_STEP;
-                        previous = next;
-                        on_branch
-                    })
+                let start = self.base
+                    * Isometry3::from_parts(
+                        Translation3::from(grip - z * APPROACH_OFFSET),
+                        **rotation,
+                    );
+                let direction = self.base.rotation * z;
+                self.inverse_kinematics(&start, &home).iter().any(|q| {
+                    push_line(self, &anywhere, q, &direction, PROBE_PUSH + APPROACH_OFFSET)
+                        .is_some()
                 })
             })
             .count()
