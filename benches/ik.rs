@@ -16,9 +16,10 @@ use std::time::Instant;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use treemanip::eval::plan::percentile;
-use treemanip::robot::chain::Chain;
-use treemanip::robot::description::RobotDescription;
-use treemanip::robot::ik_numeric::{IkOptions, random_configuration, solve};
+use treemanip::robot::kinematics::numeric_ik::{IkOptions, solve};
+use treemanip::robot::model::description::RobotDescription;
+use treemanip::robot::model::urdf_chain::Chain;
+use treemanip::robot::model::urdf_chain::random_configuration;
 use treemanip::robot::{Arm, ur5};
 
 /// The shipped robot descriptions (`robots/*.toml`): name, chain, home.
@@ -80,7 +81,7 @@ fn main() {
             solved += usize::from(q.is_some());
         }
         report(&format!("{name}, numerical"), &mut times, solved, poses);
-        if let Some(ur) = treemanip::robot::ur_kinematics::UrKinematics::detect(chain) {
+        if let Some(ur) = treemanip::robot::kinematics::ur_kinematics::UrKinematics::detect(chain) {
             // The closed form derived from the URDF, on the same poses.
             let reference: [f64; 6] = std::array::from_fn(|i| reference[i]);
             let mut times = Vec::with_capacity(poses);

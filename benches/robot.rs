@@ -19,9 +19,9 @@ use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaterni
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
-use treemanip::robot::ik;
-use treemanip::robot::rrt::{Config, MotionValidator, RrtStarOptions, rrt_star};
-use treemanip::robot::scene::PlanningScene;
+use treemanip::robot::kinematics::ur_closed_form;
+use treemanip::robot::motion::rrt::{Config, MotionValidator, RrtStarOptions, rrt_star};
+use treemanip::robot::motion::scene::PlanningScene;
 use treemanip::robot::{Arm, ur5};
 use treemanip::tree::{ScaParams, generate};
 
@@ -87,10 +87,13 @@ fn main() {
 
     let targets: Vec<_> = configs
         .iter()
-        .map(|q| ik::forward(&std::array::from_fn(|i| q[i])))
+        .map(|q| ur_closed_form::forward(&std::array::from_fn(|i| q[i])))
         .collect();
     let r = rate(budget, |i| {
-        black_box(ik::solve(&targets[i as usize % 4096], &[0.0; 6]));
+        black_box(ur_closed_form::solve(
+            &targets[i as usize % 4096],
+            &[0.0; 6],
+        ));
     });
     println!(
         "\nclosed-form IK        {:>10.0} /s  ({:.2} µs)",
@@ -210,7 +213,7 @@ fn main() {
         if let Ok(path) = result {
             times.push(t.elapsed().as_secs_f64() * 1e3);
             let path: Vec<Config> = path.iter().map(|q| Config::from_slice(q)).collect();
-            costs.push(treemanip::robot::rrt::path_cost(&path));
+            costs.push(treemanip::robot::motion::rrt::path_cost(&path));
             if !path.windows(2).all(|w| scene.edge_valid(&w[0], &w[1])) {
                 invalid += 1;
             }

@@ -13,9 +13,10 @@ use treemanip::infer::models::{ModelSet, ServedModel};
 use treemanip::planner::predict::max_node_error;
 use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
 use treemanip::robot::Arm;
+use treemanip::robot::arm::tool_line::APPROACH_OFFSET;
 use treemanip::robot::collision::{Allowed, CollisionModel, Hit, Obstacle, TreeObstacles};
-use treemanip::robot::dh::JOINT_LIMITS;
-use treemanip::robot::plan::{APPROACH_OFFSET, Outcome};
+use treemanip::robot::kinematics::dh::JOINT_LIMITS;
+use treemanip::robot::motion::push_motion::Outcome;
 use treemanip::sim::sampling::PushDistribution;
 use treemanip::sim::{Push, SimConfig, simulate};
 use treemanip::tree::{ScaParams, Tree, generate};
@@ -61,7 +62,7 @@ fn near_contact(tree: &Tree, node: usize) -> Allowed {
 /// middle, by the URDF chain's forward kinematics (code apart from the
 /// UR5 model the planner uses).
 fn check_execution(plan: &Plan, query: &Query) {
-    use treemanip::robot::chain::Chain;
+    use treemanip::robot::model::urdf_chain::Chain;
     use treemanip::robot::ur5::URDF;
     let Some(p) = &plan.plan else { return };
     let e = p
@@ -305,7 +306,7 @@ fn a_tilted_base_plans_in_the_trees_frame() {
             // chain's tool, placed by the tilted base.
             let e = p.execution.as_ref().unwrap();
             let points = &e.joint_trajectory.points;
-            let chain = treemanip::robot::chain::Chain::from_urdf_str(
+            let chain = treemanip::robot::model::urdf_chain::Chain::from_urdf_str(
                 treemanip::robot::ur5::URDF,
                 Some("base_link"),
                 Some("tool"),

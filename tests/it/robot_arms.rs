@@ -9,11 +9,11 @@ use std::time::Duration;
 
 use nalgebra::{Isometry3, Matrix4, Rotation3, UnitQuaternion, Vector3};
 use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
+use treemanip::robot::arm::tool_line::APPROACH_OFFSET;
 use treemanip::robot::catalog::{self, RobotSpec};
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
-use treemanip::robot::description::RobotDescription;
-use treemanip::robot::plan::APPROACH_OFFSET;
-use treemanip::robot::ros::JointTrajectory;
+use treemanip::robot::model::description::RobotDescription;
+use treemanip::robot::motion::ros::JointTrajectory;
 use treemanip::robot::ur5;
 use treemanip::robot::{Arm, BaseStance, PROBE_PUSHES, UR5_REACH};
 

@@ -1,4 +1,4 @@
-//! Any arm from its URDF (`robot::chain`, `robot::ik_numeric`): the chain's
+//! Any arm from its URDF (`robot::model::urdf_chain`, `robot::kinematics::numeric_ik`): the chain's
 //! forward kinematics against our UR5 model and against Pinocchio on a
 //! Franka Panda no one here wrote (example-robot-data), the numerical IK on
 //! random reachable poses of both, and broken URDFs named.
@@ -8,8 +8,9 @@ use std::process::Command;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use treemanip::robot::chain::{Chain, ChainError, JointKind};
-use treemanip::robot::ik_numeric::{IkOptions, random_configuration, solve};
+use treemanip::robot::kinematics::numeric_ik::{IkOptions, solve};
+use treemanip::robot::model::urdf_chain::random_configuration;
+use treemanip::robot::model::urdf_chain::{Chain, ChainError, JointKind};
 use treemanip::robot::{Arm, ur5};
 
 /// The Panda URDF that the `example-robot-data` package ships, or `None`

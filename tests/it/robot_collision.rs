@@ -3,7 +3,7 @@
 
 use nalgebra::{Point3, Vector3};
 use treemanip::robot::collision::{Allowed, CollisionModel, Hit, TreeObstacles};
-use treemanip::robot::rrt::Config;
+use treemanip::robot::motion::rrt::Config;
 use treemanip::robot::ur5::DISABLED_PAIRS;
 use treemanip::robot::{Arm, ur5};
 

@@ -1,4 +1,4 @@
-//! Robot descriptions (`robot::description`): the shipped `robots/*.toml`
+//! Robot descriptions (`robot::model::description`): the shipped `robots/*.toml`
 //! load without their URDFs or meshes and keep the URDF's kinematics, an
 //! import round-trips through TOML, and bad files and configurations are
 //! named.
@@ -7,9 +7,9 @@ use std::path::Path;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use treemanip::robot::chain::Chain;
-use treemanip::robot::description::{RobotDescription, import};
-use treemanip::robot::ik_numeric::random_configuration;
+use treemanip::robot::model::description::{RobotDescription, import};
+use treemanip::robot::model::urdf_chain::Chain;
+use treemanip::robot::model::urdf_chain::random_configuration;
 
 use crate::robot_chain::panda_urdf;
 
@@ -206,7 +206,7 @@ fn an_srdfs_disabled_pairs_are_kept_and_bad_ones_named() {
     };
     let good = write(&dir, "panda.toml", &config(&srdf_path));
     let d = import(&good, &[], "test").unwrap();
-    let pairs = treemanip::robot::srdf::disabled_collisions(&srdf).unwrap();
+    let pairs = treemanip::robot::model::srdf::disabled_collisions(&srdf).unwrap();
     assert!(pairs.len() > 20, "{} pairs", pairs.len());
     for p in &pairs {
         assert!(
@@ -221,14 +221,14 @@ fn an_srdfs_disabled_pairs_are_kept_and_bad_ones_named() {
     let from_srdf = d
         .disabled_pairs
         .iter()
-        .filter(|x| x.reason == treemanip::robot::self_collision::DisableReason::Srdf)
+        .filter(|x| x.reason == treemanip::robot::model::self_pairs::DisableReason::Srdf)
         .count();
     assert!(from_srdf > 0, "the SRDF adds pairs the sampling kept");
     // The hand against link 5: the setup assistant disabled it because
     // they touch at the default pose ("Default"); our capsules do not
     // always touch, so only the SRDF disables it.
     assert!(d.disabled_pairs.iter().any(|x| x.reason
-        == treemanip::robot::self_collision::DisableReason::Srdf
+        == treemanip::robot::model::self_pairs::DisableReason::Srdf
         && [&x.a, &x.b].contains(&&"panda_link5".to_owned())));
     let wrong = write(
         &dir,

@@ -7,7 +7,9 @@
 use std::path::Path;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
-use treemanip::robot::link_geometry::{LinkShape, link_geometry, mesh_triangles, resolve_mesh};
+use treemanip::robot::model::link_geometry::{
+    LinkShape, link_geometry, mesh_triangles, resolve_mesh,
+};
 
 use crate::robot_chain::panda_urdf;
 
@@ -90,8 +92,8 @@ fn the_pandas_meshes_are_enclosed_by_their_capsules() {
 /// are not left out (the arm can fold the hand onto its base).
 #[test]
 fn the_pandas_self_collision_pairs_are_found_by_sampling() {
-    use treemanip::robot::chain::Chain;
-    use treemanip::robot::self_collision::{DisableReason, all_link_poses, disabled_pairs};
+    use treemanip::robot::model::self_pairs::{DisableReason, all_link_poses, disabled_pairs};
+    use treemanip::robot::model::urdf_chain::Chain;
     let Some(path) = panda_urdf() else { return };
     let robot = urdf_rs::read_file(&path).unwrap();
     let chain = Chain::from_robot(&robot, Some("panda_link0"), Some("panda_hand")).unwrap();

@@ -10,8 +10,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use treemanip::robot::catalog::{self, RobotSpec};
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
-use treemanip::robot::rrt::{Config, MotionValidator};
-use treemanip::robot::scene::PlanningScene;
+use treemanip::robot::motion::rrt::{Config, MotionValidator};
+use treemanip::robot::motion::scene::PlanningScene;
 use treemanip::robot::{Arm, ur5};
 
 const URDF: &str = r#"<robot name="parallelogram">

@@ -7,7 +7,8 @@ use nalgebra::{Isometry3, Matrix4, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use treemanip::robot::Arm;
-use treemanip::robot::link_geometry::LinkShape;
+use treemanip::robot::model::link_geometry::LinkShape;
+use treemanip::robot::model::tool;
 use treemanip::robot::ur5::{self, DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
 
 #[test]
@@ -88,15 +89,15 @@ fn tool_frame_sits_on_the_palm_face() {
     let flange = poses[robot.link_index("wrist_3_link").unwrap()];
     let tool = robot.tool_pose(&q);
     let offset = flange.inverse() * tool;
-    assert!((offset.translation.vector - Vector3::new(0.0, 0.0, ur5::TOOL_OFFSET)).norm() < 1e-15);
+    assert!((offset.translation.vector - Vector3::new(0.0, 0.0, tool::TOOL_OFFSET)).norm() < 1e-15);
     assert!(offset.rotation.angle() < 1e-15);
     // Slot: the two finger boxes leave 2 cm between them.
-    let fingers: Vec<f64> = ur5::GRIPPER_BOXES[2..]
+    let fingers: Vec<f64> = tool::GRIPPER_BOXES[2..]
         .iter()
         .map(|b| b.centre[1])
         .collect();
-    let gap = (fingers[0] - fingers[1]).abs() - ur5::FINGER_THICKNESS;
-    assert!((gap - ur5::SLOT_WIDTH).abs() < 1e-15);
+    let gap = (fingers[0] - fingers[1]).abs() - tool::FINGER_THICKNESS;
+    assert!((gap - tool::SLOT_WIDTH).abs() < 1e-15);
 }
 
 #[test]
@@ -176,7 +177,9 @@ fn home_pose_holds_the_gripper_in_front_of_the_tree() {
 
 mod inverse_kinematics {
     use super::*;
-    use treemanip::robot::ik::{self, forward, nearest_within_limits, solve, wrap};
+    use treemanip::robot::kinematics::ur_closed_form::{
+        self, forward, nearest_within_limits, solve, wrap,
+    };
 
     fn pose_error(a: &Matrix4<f64>, b: &Matrix4<f64>) -> f64 {
         (a - b).abs().max()
@@ -275,7 +278,7 @@ mod inverse_kinematics {
         .unwrap();
         assert_eq!(kept[3], 0.1);
         assert_eq!(near[5], 2.0);
-        let _ = ik::dh_transform(0, 0.0);
+        let _ = ur_closed_form::dh_transform(0, 0.0);
     }
 
     #[test]

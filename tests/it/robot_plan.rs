@@ -1,13 +1,13 @@
 //! Algorithm 1 end to end on hand-built scenes.
 
 use nalgebra::{Isometry3, Point3, Vector3};
+use treemanip::robot::arm::tool_line::APPROACH_OFFSET;
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
-use treemanip::robot::plan::{
-    APPROACH_OFFSET, Outcome, PlanOptions, PushPlan, PushSnapshots, execute, pre_contact_poses,
-    reach,
+use treemanip::robot::motion::push_motion::{
+    Outcome, PlanOptions, PushPlan, PushSnapshots, execute, pre_contact_poses, reach,
 };
-use treemanip::robot::rrt::{Config, MotionValidator};
-use treemanip::robot::scene::PlanningScene;
+use treemanip::robot::motion::rrt::{Config, MotionValidator};
+use treemanip::robot::motion::scene::PlanningScene;
 use treemanip::robot::{Arm, ur5};
 use treemanip::sim::Push;
 use treemanip::tree::{Tree, Wood};

@@ -4,8 +4,8 @@
 //! back equal; times increase, and the velocities are the positions'
 //! derivative.
 
-use treemanip::robot::ros::{JointTrajectory, RosDuration};
-use treemanip::robot::timing::{SplinePath, time_optimal};
+use treemanip::robot::motion::ros::{JointTrajectory, RosDuration};
+use treemanip::robot::motion::topp::{SplinePath, time_optimal};
 
 fn trajectory() -> JointTrajectory {
     let waypoints = vec![

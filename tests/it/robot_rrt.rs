@@ -5,11 +5,11 @@ use std::f64::consts::FRAC_PI_2;
 
 use nalgebra::Point3;
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
-use treemanip::robot::rrt::{
+use treemanip::robot::motion::rrt::{
     Config, MotionValidator, RrtStarOptions, path_cost, rrt_star, shortcut,
 };
-use treemanip::robot::scene::PlanningScene;
-use treemanip::robot::trajectory::time_parameterize;
+use treemanip::robot::motion::scene::PlanningScene;
+use treemanip::robot::motion::trajectory::time_parameterize;
 use treemanip::robot::{Arm, ur5};
 
 const START: Config = Config::new([0.0, -1.2, 1.4, -1.7, -FRAC_PI_2, 0.0]);
@@ -154,11 +154,11 @@ fn unreachable_goals_and_bad_starts_are_reported() {
     };
     assert_eq!(
         rrt_star(&into_ground, &[GOAL], &scene, &options).unwrap_err(),
-        treemanip::robot::rrt::RrtError::StartInvalid
+        treemanip::robot::motion::rrt::RrtError::StartInvalid
     );
     assert_eq!(
         rrt_star(&START, &[into_ground], &scene, &options).unwrap_err(),
-        treemanip::robot::rrt::RrtError::NoValidGoal
+        treemanip::robot::motion::rrt::RrtError::NoValidGoal
     );
 }
 
@@ -173,7 +173,7 @@ fn edge_spacing_bounds_every_shape_points_motion() {
     let empty = TreeObstacles::empty();
     let scene = PlanningScene::new(&model, &empty, Allowed::default());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-    let limits = treemanip::robot::dh::JOINT_LIMITS;
+    let limits = treemanip::robot::kinematics::dh::JOINT_LIMITS;
     let mut tight = 0.0f64;
     for _ in 0..300 {
         let a: Config = Config::from_fn(6, |i| rng.random_range(limits[i].0..limits[i].1) * 0.5);
@@ -362,7 +362,7 @@ fn a_free_direct_edge_to_the_nearest_goal_ends_the_search_at_once() {
         let path = rrt_star(&START, &[farther, GOAL], &counter, &options).expect("a path");
         assert_eq!(path.waypoints, vec![START, GOAL], "lazy {lazy}");
         assert_eq!(path.goal, 1);
-        assert!((path.cost - treemanip::robot::rrt::distance(&START, &GOAL)).abs() < 1e-12);
+        assert!((path.cost - treemanip::robot::motion::rrt::distance(&START, &GOAL)).abs() < 1e-12);
         assert_eq!(path.stats.iterations, 0, "lazy {lazy}: no sampling needed");
         assert_eq!(
             counter.edges.get(),

@@ -1,4 +1,4 @@
-//! Time-optimal timing for any number of joints (`robot::timing`): the
+//! Time-optimal timing for any number of joints (`robot::motion::topp`): the
 //! spline passes its waypoints at rest only at the ends, every limit holds
 //! when checked by finite differences of the positions alone, and the
 //! duration matches TOPP-RA's own implementation (the `toppra` package) on
@@ -6,8 +6,8 @@
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use treemanip::robot::timing::jerk::JerkLimited;
-use treemanip::robot::timing::{SplinePath, TimedPath, time_optimal};
+use treemanip::robot::motion::topp::jerk::JerkLimited;
+use treemanip::robot::motion::topp::{SplinePath, TimedPath, time_optimal};
 
 /// `count` random waypoints of `dof` joints, each a step of up to 1 rad.
 fn waypoints(dof: usize, count: usize, seed: u64) -> Vec<Vec<f64>> {

@@ -6,10 +6,10 @@ use std::path::Path;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use treemanip::robot::chain::Chain;
-use treemanip::robot::description::RobotDescription;
-use treemanip::robot::ik_numeric::random_configuration;
-use treemanip::robot::ur_kinematics::UrKinematics;
+use treemanip::robot::kinematics::ur_kinematics::UrKinematics;
+use treemanip::robot::model::description::RobotDescription;
+use treemanip::robot::model::urdf_chain::Chain;
+use treemanip::robot::model::urdf_chain::random_configuration;
 use treemanip::robot::ur5;
 
 fn shipped(name: &str) -> Chain {

@@ -438,11 +438,11 @@ fn policy_ranks_every_pushable_node_and_plan_runs_algorithm_1() {
         assert_eq!(answer["error"]["details"]["field"], field);
     }
     // A start pose that collides (the stretched-out arm crosses the trunk).
-    use treemanip::robot::rrt::MotionValidator;
-    let zero = treemanip::robot::rrt::Config::zeros(6);
+    use treemanip::robot::motion::rrt::MotionValidator;
+    let zero = treemanip::robot::motion::rrt::Config::zeros(6);
     let model = treemanip::robot::collision::CollisionModel::new(treemanip::robot::Arm::default());
     let obstacles = treemanip::robot::collision::TreeObstacles::new(&tree);
-    let scene = treemanip::robot::scene::PlanningScene::new(
+    let scene = treemanip::robot::motion::scene::PlanningScene::new(
         &model,
         &obstacles,
         treemanip::robot::collision::Allowed::default(),

@@ -9,7 +9,7 @@ use treemanip::planner::seeds::geometric_seeds;
 use treemanip::planner::{
     ContactPolicy, Objective, PlanError, Planner, Query, Region, Stance, Strategy,
 };
-use treemanip::robot::plan::Outcome;
+use treemanip::robot::motion::push_motion::Outcome;
 use treemanip::sim::loads::PushLoads;
 use treemanip::sim::{ContactModel, Push, SimConfig, simulate};
 use treemanip::tree::{Tree, Wood};

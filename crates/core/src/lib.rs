@@ -19,6 +19,7 @@
 //! N·m·s/rad for joint damping.
 
 pub mod dataset;
+pub mod geometry;
 pub mod graph;
 pub mod identify;
 pub mod model;

@@ -18,7 +18,7 @@ use treemanip::eval::plots::rank_histogram_svg;
 use treemanip::infer::models::{ModelSet, ServedModel, SessionLayout};
 use treemanip::planner::{Objective, Planner, Query, Stance, Strategy};
 use treemanip::robot::collision::CollisionModel;
-use treemanip::robot::joint_vector::JointVector;
+use treemanip::robot::model::joint_vector::JointVector;
 use treemanip::robot::ur5;
 use treemanip::sim::{Push, SimConfig, simulate};
 
@@ -293,7 +293,7 @@ pub struct EvalPlanArgs {
 
 /// The arm a `--robot` value names ([`treemanip::robot::catalog::resolve`]).
 fn resolve_robot(text: &str) -> anyhow::Result<treemanip::robot::Arm> {
-    let packages = treemanip::robot::link_geometry::package_path_from_env();
+    let packages = treemanip::robot::model::link_geometry::package_path_from_env();
     Ok(treemanip::robot::catalog::resolve(text, &packages)?)
 }
 

@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use treemanip::robot::chain::{Chain, parse_urdf};
-use treemanip::robot::link_geometry::{LinkShape, link_geometry, package_path_from_env};
-use treemanip::robot::self_collision::{DisableReason, disabled_pairs};
+use treemanip::robot::model::link_geometry::{LinkShape, link_geometry, package_path_from_env};
+use treemanip::robot::model::self_pairs::{DisableReason, disabled_pairs};
+use treemanip::robot::model::urdf_chain::{Chain, parse_urdf};
 
 #[derive(Subcommand)]
 pub enum RobotCommand {
@@ -75,10 +75,11 @@ fn import(args: ImportArgs) -> anyhow::Result<()> {
         args.config.display(),
         args.out.display()
     );
-    let description = treemanip::robot::description::import(&args.config, &packages, &command)?;
+    let description =
+        treemanip::robot::model::description::import(&args.config, &packages, &command)?;
     let text = description.to_toml().map_err(|e| anyhow::anyhow!(e))?;
     // What is written must load.
-    treemanip::robot::description::RobotDescription::from_toml_str(&text, &args.out)?;
+    treemanip::robot::model::description::RobotDescription::from_toml_str(&text, &args.out)?;
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;
     }

@@ -5,7 +5,7 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
-use crate::robot::rrt::Config;
+use crate::robot::motion::rrt::Config;
 use crate::robot::{Arm, UR5_REACH};
 use crate::sim::{GRIP_OFFSET, Push};
 use crate::tree::Tree;

@@ -8,8 +8,11 @@
 //! same objective, so on the corrected tree it is usually one small
 //! correction away from the best.
 
-use super::{ContactPolicy, Plan, PlanError, Planner, Predictor, Query};
 use crate::identify::identify;
+use crate::planner::answer::{Plan, PlanError};
+use crate::planner::placed::Planner;
+use crate::planner::predict::{ContactPolicy, Predictor};
+use crate::planner::query::Query;
 use crate::sim::Push;
 
 impl Planner {

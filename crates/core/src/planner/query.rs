@@ -6,16 +6,18 @@ use std::time::Duration;
 use nalgebra::{Isometry3, Point3};
 use serde::Serialize;
 
-use super::DEFAULT_CANDIDATES;
-use super::base::BaseRegion;
-use super::objective::{Limits, Objective};
-use super::search::SearchOptions;
 use crate::identify::{IdentifyConfig, Probe};
+use crate::planner::base::BaseRegion;
+use crate::planner::objective::{Limits, Objective};
+use crate::planner::search::SearchOptions;
 use crate::robot::collision::Obstacle;
-use crate::robot::execution::ExecutionOptions;
-use crate::robot::rrt::Config;
+use crate::robot::motion::execution::ExecutionOptions;
+use crate::robot::motion::rrt::Config;
 use crate::robot::ur5;
 use crate::tree::Tree;
+
+/// Nodes searched by default.
+pub const DEFAULT_CANDIDATES: usize = 4;
 
 /// How the push is chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, Default)]

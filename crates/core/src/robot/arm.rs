@@ -1,6 +1,6 @@
 //! [`Arm`]: any serial arm the planner drives, built from a
 //! [`RobotDescription`] (an imported robot, a bare URDF described on the
-//! fly, or the built-in UR5 of [`super::ur5`]).
+//! fly, or the built-in UR5 of [`crate::robot::ur5`]).
 //!
 //! The arm is a tree of links in parent-before-child order: the chain's
 //! links, each moved by its joint (revolute or prismatic, or following
@@ -13,7 +13,7 @@
 //!
 //! Inverse kinematics takes the closed form when the chain has UR
 //! kinematics ([`UrKinematics::detect`]: 2.5 µs a pose) and damped least
-//! squares with restarts otherwise ([`super::ik_numeric`]).
+//! squares with restarts otherwise ([`crate::robot::kinematics::numeric_ik`]).
 
 use std::collections::HashMap;
 
@@ -21,29 +21,25 @@ use nalgebra::{Isometry3, Point3, Unit, UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::chain::{Chain, JointKind};
-use super::description::RobotDescription;
-use super::ik_numeric::{IkOptions, random_configuration, solve};
-use super::joint_vector::{JointVector, MAX_DOF};
-use super::link_geometry::LinkShape;
-use super::ur_kinematics::UrKinematics;
-use super::ur5::{GRIPPER_BOXES, TOOL_OFFSET};
+use crate::robot::kinematics::numeric_ik::{IkOptions, solve};
+use crate::robot::kinematics::ur_kinematics::UrKinematics;
+use crate::robot::model::description::RobotDescription;
+use crate::robot::model::joint_vector::{JointVector, MAX_DOF};
+use crate::robot::model::link_geometry::LinkShape;
+use crate::robot::model::tool::{GRIPPER_BOXES, GRIPPER_LINK, TOOL_LINK, TOOL_OFFSET};
+use crate::robot::model::urdf_chain::random_configuration;
+use crate::robot::model::urdf_chain::{Chain, JointKind};
 
 mod reach;
 mod self_motion;
 mod stance;
-pub use stance::{BaseStance, PROBE_PUSHES, UR5_REACH};
+pub mod tool_line;
+pub use stance::{PROBE_PUSHES, UR5_REACH};
 
 /// World poses of the links, in the arm's link order: on the stack for
 /// arms of up to 24 links, since the collision checker computes them for
 /// every pose it checks.
 pub type LinkPoses = smallvec::SmallVec<[Isometry3<f64>; 24]>;
-
-/// The name of the tool frame's link.
-pub const TOOL_LINK: &str = "tool";
-/// The name of the link carrying the ⊔ gripper's boxes when they are
-/// added to a description's tip.
-pub const GRIPPER_LINK: &str = "gripper";
 
 /// Starts tried for the pre-contact poses of a numerical chain, besides
 /// the reference: each converged one that differs from the others is a
@@ -51,6 +47,22 @@ pub const GRIPPER_LINK: &str = "gripper";
 const IK_STARTS: usize = 10;
 /// Two solutions closer than this in every joint are one (rad or m).
 const SAME_SOLUTION: f64 = 0.05;
+
+/// Where a mobile base stands for a push, relative to the grip point:
+/// the horizontal distance from the base to the grip point, and the grip
+/// point's height above the base (m). Scored per arm by [`Arm::stances`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BaseStance {
+    pub stand_off: f64,
+    pub height: f64,
+}
+
+/// The paper's mount: `base_link` at (−0.5, 0, 0.1) m from the tree root,
+/// identity orientation.
+pub const PAPER_BASE: Isometry3<f64> = Isometry3::from_parts(
+    nalgebra::Translation3::new(-0.5, 0.0, 0.1),
+    UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(1.0, 0.0, 0.0, 0.0)),
+);
 
 /// A joint variable: its limits (rad or m; per second, per second²).
 #[derive(Debug, Clone, PartialEq)]
@@ -105,6 +117,9 @@ pub struct Arm {
     disabled_pairs: Vec<(String, String)>,
     /// World pose of the chain's base link.
     pub base: Isometry3<f64>,
+    /// Where the arm stands when a request names no base (see
+    /// [`Arm::default_base`]).
+    default_base: Isometry3<f64>,
     /// Where a mobile base stands for a push ([`Arm::stances`]).
     stances: std::sync::OnceLock<Vec<BaseStance>>,
 }
@@ -302,8 +317,22 @@ impl Arm {
                 .map(|p| (p.a.clone(), p.b.clone()))
                 .collect(),
             base: Isometry3::identity(),
-            stances: stance::unscored(),
+            default_base: PAPER_BASE,
+            stances: std::sync::OnceLock::new(),
         })
+    }
+
+    /// Where this arm stands when a request names no base: the paper's
+    /// mount, `base_link` at (−0.5, 0, 0.1) m from the tree root facing +x,
+    /// unless set with [`Arm::with_default_base`].
+    pub fn default_base(&self) -> Isometry3<f64> {
+        self.default_base
+    }
+
+    /// This arm with another default base.
+    pub fn with_default_base(mut self, base: Isometry3<f64>) -> Self {
+        self.default_base = base;
+        self
     }
 
     pub fn with_base(mut self, base: Isometry3<f64>) -> Self {

@@ -4,14 +4,16 @@
 
 use std::path::{Path, PathBuf};
 
-use super::arm::Arm;
-use super::chain::parse_urdf;
-use super::collision::{Allowed, CollisionModel, TreeObstacles};
-use super::description::{DescriptionError, RobotConfig, RobotDescription, SELF_COLLISION_SAMPLES};
-use super::ik_numeric::random_configuration;
-use super::import::{Blame, describe, import};
-use super::joint_vector::JointVector;
-use super::rrt::distance;
+use crate::robot::arm::Arm;
+use crate::robot::collision::{Allowed, CollisionModel, TreeObstacles};
+use crate::robot::model::description::{
+    DescriptionError, RobotConfig, RobotDescription, SELF_COLLISION_SAMPLES,
+};
+use crate::robot::model::import::{Blame, describe, import};
+use crate::robot::model::joint_vector::JointVector;
+use crate::robot::model::urdf_chain::parse_urdf;
+use crate::robot::model::urdf_chain::random_configuration;
+use crate::robot::motion::rrt::distance;
 
 /// The built-in arm's name.
 pub const BUILT_IN: &str = "ur5";
@@ -81,7 +83,7 @@ pub fn parse_list(text: &str) -> Result<Vec<RobotSpec>, String> {
 /// The description `spec` names: an imported description (`.toml`), a
 /// robot configuration (`.toml` naming its URDF, imported now), or a URDF
 /// described now (its meshes fitted, its self-collision pairs sampled)
-/// with the documented defaults ([`super::description`]). `tip` and `base`
+/// with the documented defaults ([`crate::robot::model::description`]). `tip` and `base`
 /// apply to a bare URDF only: a TOML file gives its own chain.
 pub fn load_description(
     spec: &RobotSpec,
@@ -166,13 +168,13 @@ pub fn load(spec: &RobotSpec, packages: &[PathBuf]) -> Result<Arm, DescriptionEr
 const HOME_SAMPLES: usize = 500;
 
 /// A collision-free home for `arm` at the default mount (10 cm above the
-/// ground, [`super::ur5::default_base`]; its links clear of the ground and
+/// ground, [`crate::robot::ur5::default_base`]; its links clear of the ground and
 /// each other): its own home, else zero
 /// clamped into the limits, else the middle of the limits, else the free
 /// random configuration nearest the middle.
 pub fn free_home(arm: &Arm) -> Option<JointVector> {
     use rand::SeedableRng;
-    let model = CollisionModel::new(arm.clone().with_base(super::ur5::default_base()));
+    let model = CollisionModel::new(arm.clone().with_base(crate::robot::ur5::default_base()));
     let empty = TreeObstacles::empty();
     let free = |q: &JointVector| model.check(q, &empty, &Allowed::default()).is_none();
     let limits = arm.limits();

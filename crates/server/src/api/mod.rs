@@ -10,7 +10,9 @@
 //! Described in `openapi.yaml`.
 
 pub mod domain;
+pub mod drain;
 pub mod error;
+pub mod health_check;
 pub mod identify;
 pub mod json;
 pub mod metrics;
@@ -18,14 +20,15 @@ pub mod objective;
 pub mod observations;
 pub mod plan;
 pub mod predict;
-pub mod probe;
+pub mod request_log;
+pub mod robot_planners;
 pub mod robots;
 pub mod scene;
 pub mod server;
 pub mod shutdown;
 pub mod simulate;
 pub mod state;
-pub mod timing;
+
 pub mod tree_json;
 pub mod v2;
 pub mod validate;
@@ -89,7 +92,7 @@ pub fn router(state: AppState) -> Router {
             shutdown::guard,
         ))
         .layer(axum::middleware::from_fn(metrics::track))
-        .layer(axum::middleware::from_fn(timing::headers))
+        .layer(axum::middleware::from_fn(request_log::headers))
         // A bug in one handler is that request's 500, in the error shape;
         // the server keeps serving.
         .layer(tower_http::catch_panic::CatchPanicLayer::custom(
@@ -99,7 +102,7 @@ pub fn router(state: AppState) -> Router {
         // Every request gets an id (a client's own `x-request-id` is kept),
         // echoed in the answer and named in its log lines.
         .layer(tower_http::request_id::PropagateRequestIdLayer::x_request_id())
-        .layer(timing::RequestSpanLayer::new())
+        .layer(request_log::RequestSpanLayer::new())
         .layer(tower_http::request_id::SetRequestIdLayer::x_request_id(
             tower_http::request_id::MakeRequestUuid,
         ))

@@ -21,8 +21,8 @@ use treemanip_core::identify::Noise;
 use treemanip_core::planner::base::{BasePose, BaseRegion};
 use treemanip_core::planner::{self, Attempt, Predictor, Query, Stance, Strategy};
 use treemanip_core::robot::collision::Obstacle;
-use treemanip_core::robot::execution::ExecutionOptions;
-use treemanip_core::robot::trajectory::TimedPoint;
+use treemanip_core::robot::motion::execution::ExecutionOptions;
+use treemanip_core::robot::motion::trajectory::TimedPoint;
 use treemanip_core::robot::ur5;
 
 /// Obstacles a request may list.
@@ -173,7 +173,7 @@ pub struct PlanResponse {
     /// The whole held push (approach, push, hold, release, retreat) as a
     /// ROS 2 `trajectory_msgs/JointTrajectory`, velocity-continuous and
     /// within the joints' limits.
-    pub joint_trajectory: Option<treemanip_core::robot::ros::JointTrajectory>,
+    pub joint_trajectory: Option<treemanip_core::robot::motion::ros::JointTrajectory>,
     /// Indices of `joint_trajectory`'s first and last point of the
     /// straight push.
     pub push_start_point: Option<usize>,

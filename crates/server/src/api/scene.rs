@@ -16,7 +16,7 @@ use super::error::ApiError;
 use super::json::ApiJson;
 use super::tree_json::{TreeJson, tree_error};
 use treemanip_core::planner::base::BasePose;
-use treemanip_core::robot::link_geometry::LinkShape;
+use treemanip_core::robot::model::link_geometry::LinkShape;
 use treemanip_core::robot::ur5;
 use treemanip_core::tree::sca::{self, MIN_GENERATED_NODES, ScaError, ScaParams};
 use treemanip_core::tree::urdf::{UrdfError, from_urdf_str};

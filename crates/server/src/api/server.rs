@@ -101,8 +101,8 @@ pub enum LogFormat {
 /// `--health-check`, probes a running server and returns).
 pub fn run(args: ServeArgs) -> anyhow::Result<()> {
     if args.health_check {
-        let addr = api::probe::loopback_for(args.bind);
-        api::probe::check(addr, std::time::Duration::from_secs(2))
+        let addr = api::health_check::loopback_for(args.bind);
+        api::health_check::check(addr, std::time::Duration::from_secs(2))
             .map_err(|why| anyhow::anyhow!("unhealthy: {why}"))?;
         println!("healthy: {addr}");
         return Ok(());
@@ -183,7 +183,7 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
         "models loaded"
     );
 
-    let packages = treemanip_core::robot::link_geometry::package_path_from_env();
+    let packages = treemanip_core::robot::model::link_geometry::package_path_from_env();
     let mut arms = Vec::new();
     for spec in &args.robots {
         match treemanip_core::robot::catalog::load(spec, &packages) {
@@ -200,7 +200,7 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
             ),
         }
     }
-    let robots = api::robots::RobotPlanners::new(arms);
+    let robots = api::robot_planners::RobotPlanners::new(arms);
 
     let listener = TcpListener::bind(args.bind)
         .await

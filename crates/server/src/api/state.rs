@@ -12,8 +12,10 @@ use treemanip_infer::Backend;
 use treemanip_infer::batcher::JobControl;
 use treemanip_infer::models::{ModelSet, ServedModel};
 
+use super::drain::Drain;
 use super::error::ApiError;
-use super::{metrics, shutdown, timing};
+use super::robot_planners::RobotPlanners;
+use super::{metrics, request_log};
 
 /// A served model that can move into a blocking job.
 #[derive(Clone)]
@@ -80,9 +82,9 @@ pub struct AppState {
     pub(crate) admission: Arc<Semaphore>,
     pub(crate) metrics: metrics_exporter_prometheus::PrometheusHandle,
     /// Graceful shutdown's state ([`shutdown`]).
-    pub drain: Arc<shutdown::Drain>,
+    pub drain: Arc<Drain>,
     /// A planner per arm served, each built once.
-    pub robots: Arc<super::robots::RobotPlanners>,
+    pub robots: Arc<RobotPlanners>,
 }
 
 impl AppState {
@@ -97,7 +99,7 @@ impl AppState {
         }
     }
 
-    pub fn with_robots(mut self, robots: super::robots::RobotPlanners) -> Self {
+    pub fn with_robots(mut self, robots: RobotPlanners) -> Self {
         self.robots = Arc::new(robots);
         self
     }
@@ -195,7 +197,7 @@ impl AppState {
                 let computed = worked.saturating_sub(in_queues);
                 ::metrics::histogram!("treemanip_queue_seconds", "route" => route)
                     .record(queued.as_secs_f64());
-                let _ = timing::TIMING.try_with(|t| t.set(Some((queued, computed))));
+                let _ = request_log::TIMING.try_with(|t| t.set(Some((queued, computed))));
                 result
             }
         };

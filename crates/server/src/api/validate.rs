@@ -113,7 +113,7 @@ pub fn joints(
     values: &[f64],
     field: &str,
     arm: &treemanip_core::robot::Arm,
-) -> Result<treemanip_core::robot::joint_vector::JointVector, ApiError> {
+) -> Result<treemanip_core::robot::model::joint_vector::JointVector, ApiError> {
     if values.len() != arm.dof() {
         return Err(ApiError::invalid_field(
             field,
@@ -136,7 +136,7 @@ pub fn joints(
             ));
         }
     }
-    Ok(treemanip_core::robot::joint_vector::JointVector::from_slice(values))
+    Ok(treemanip_core::robot::model::joint_vector::JointVector::from_slice(values))
 }
 
 /// A point within [`MAX_DISTANCE`] of the root.

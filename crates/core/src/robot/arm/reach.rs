@@ -3,9 +3,9 @@
 
 use nalgebra::Isometry3;
 
-use super::Arm;
-use crate::robot::joint_vector::JointVector;
-use crate::robot::link_geometry::LinkShape;
+use crate::robot::arm::Arm;
+use crate::robot::model::joint_vector::JointVector;
+use crate::robot::model::link_geometry::LinkShape;
 
 impl Arm {
     /// Upper bounds, in any configuration, on the distance from each
@@ -27,7 +27,7 @@ impl Arm {
             let mut offset = reach;
             let mut k = l;
             let mut sums = JointVector::zeros(self.dof());
-            let mut touched = [false; crate::robot::joint_vector::MAX_DOF];
+            let mut touched = [false; crate::robot::model::joint_vector::MAX_DOF];
             loop {
                 if let Some(m) = &self.links[k].motion {
                     sums[m.variable] += m.multiplier.abs() * offset;

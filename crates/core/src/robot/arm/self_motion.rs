@@ -7,8 +7,8 @@
 
 use nalgebra::{DVector, Matrix6, Vector6};
 
-use super::{Arm, SAME_SOLUTION, Solver};
-use crate::robot::joint_vector::JointVector;
+use crate::robot::arm::{Arm, SAME_SOLUTION, Solver};
+use crate::robot::model::joint_vector::JointVector;
 
 impl Arm {
     /// Configurations holding the tool where `q` holds it, one per step in

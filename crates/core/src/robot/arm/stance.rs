@@ -20,21 +20,11 @@
 //! where the UR5 always has. The scores are computed once per arm, on the
 //! first base-region plan (about 0.2 s for a 7-joint arm).
 
-use std::sync::OnceLock;
-
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use super::Arm;
-use crate::robot::joint_vector::JointVector;
-use crate::robot::plan::{APPROACH_OFFSET, push_line};
-
-/// Horizontal distance from the base to the grip point, and the grip
-/// point's height above the base (m).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BaseStance {
-    pub stand_off: f64,
-    pub height: f64,
-}
+use crate::robot::arm::tool_line::{APPROACH_OFFSET, push_line};
+use crate::robot::arm::{Arm, BaseStance};
+use crate::robot::model::joint_vector::JointVector;
 
 /// The built-in UR5's [`Arm::reach`] (m): the distances below are for it,
 /// and other arms scale them by their reach.
@@ -131,9 +121,4 @@ impl Arm {
             })
             .count()
     }
-}
-
-/// An empty cache, for [`Arm`]'s constructor.
-pub(super) fn unscored() -> OnceLock<Vec<BaseStance>> {
-    OnceLock::new()
 }

@@ -14,63 +14,13 @@
 
 use std::cell::Cell;
 
-use nalgebra::Point3;
-use parry3d_f64::query::details::closest_points_segment_segment_with_locations_nD;
-
-use super::segment_box::segment_box_distance_squared;
-use super::{
-    Aabb, Allowed, CollisionModel, GROUND_Z, JointVector, ShapeSlot, TreeObstacles, WorldShape,
-    WorldShapes,
-};
+use crate::geometry::world_shape::{WorldShape, WorldShapes, distance};
 use crate::robot::arm::JointAxes;
-use crate::robot::link_geometry::LinkShape;
-
-/// Distance of `p` from a joint's axis (a point on it, its direction).
-pub(super) fn from_axis(
-    axis: &(Point3<f64>, nalgebra::Vector3<f64>, bool),
-    p: &Point3<f64>,
-) -> f64 {
-    let (o, d, _) = axis;
-    let v = p - o;
-    (v - d * v.dot(d)).norm()
-}
-
-/// Points that bound a shape at `pose`, and how far the shape reaches
-/// beyond them (grown by `margin`).
-pub(super) fn bounding_points(
-    slot: &ShapeSlot,
-    pose: &nalgebra::Isometry3<f64>,
-    margin: f64,
-) -> ([Point3<f64>; 2], f64) {
-    match &slot.shape {
-        LinkShape::Capsule(c) => ([pose * c.a, pose * c.b], c.radius + margin),
-        LinkShape::Sphere { center, radius } => {
-            let c = pose * center;
-            ([c, c], radius + margin)
-        }
-        LinkShape::Box {
-            pose: at,
-            half_extents,
-        } => {
-            let c = pose * at * Point3::origin();
-            ([c, c], half_extents.norm() + margin)
-        }
-        LinkShape::Cylinder {
-            pose: at,
-            radius,
-            half_length,
-        } => {
-            let world = pose * at;
-            (
-                [
-                    world * Point3::new(0.0, 0.0, -half_length),
-                    world * Point3::new(0.0, 0.0, *half_length),
-                ],
-                radius + margin,
-            )
-        }
-    }
-}
+use crate::robot::collision::bounds::{bounding_points, from_axis};
+use crate::robot::collision::model::{
+    Allowed, CollisionModel, GROUND_Z, SELF_CLEARANCE, TreeObstacles,
+};
+use crate::robot::model::joint_vector::JointVector;
 
 /// How fast each shape can move along one edge, per unit of t.
 #[derive(Debug, Clone)]
@@ -130,7 +80,7 @@ impl CollisionModel {
             .shapes
             .iter()
             .map(|slot| {
-                let (points, pad) = bounding_points(slot, &poses[slot.link], 0.0);
+                let (points, pad) = bounding_points(&slot.shape, &poses[slot.link], 0.0);
                 JointVector::from_fn(dof, |i| {
                     if !slot.moved_by[i] || dq[i] == 0.0 {
                         return 0.0;
@@ -314,10 +264,10 @@ enum Pair {
 
 impl Pair {
     /// The clearance this pair needs: `min_clearance`, or for two arm
-    /// shapes no more than [`super::SELF_CLEARANCE`].
+    /// shapes no more than [`SELF_CLEARANCE`].
     fn clearance(self, min_clearance: f64) -> f64 {
         match self {
-            Pair::Arm(..) => min_clearance.min(super::SELF_CLEARANCE),
+            Pair::Arm(..) => min_clearance.min(SELF_CLEARANCE),
             _ => min_clearance,
         }
     }
@@ -331,50 +281,6 @@ impl Pair {
     }
 }
 
-impl Aabb {
-    /// This box grown by `by` on every side.
-    fn grown(&self, by: f64) -> Aabb {
-        let pad = nalgebra::Vector3::repeat(by);
-        Aabb {
-            min: self.min - pad,
-            max: self.max + pad,
-        }
-    }
-
-    /// Squared distance between two boxes: a lower bound on that between
-    /// any shapes inside them.
-    fn distance_squared(&self, other: &Aabb) -> f64 {
-        (self.min - other.max)
-            .sup(&(other.min - self.max))
-            .sup(&nalgebra::Vector3::zeros())
-            .norm_squared()
-    }
-}
-
-/// Distance between two shapes (0 when they touch or overlap): closed form
-/// for two capsules and for a capsule and a box ([`super::segment_box`]),
-/// parry's GJK for two boxes.
-fn distance(a: &WorldShape, b: &WorldShape) -> f64 {
-    match (a, b) {
-        (WorldShape::Capsule(c1), WorldShape::Capsule(c2)) => {
-            let (s1, s2) = (&c1.segment, &c2.segment);
-            let (l1, l2) =
-                closest_points_segment_segment_with_locations_nD((&s1.a, &s1.b), (&s2.a, &s2.b));
-            let gap = (s1.point_at(&l1) - s2.point_at(&l2)).length();
-            (gap - c1.radius - c2.radius).max(0.0)
-        }
-        (WorldShape::Capsule(c), WorldShape::Box(cuboid, pose))
-        | (WorldShape::Box(cuboid, pose), WorldShape::Capsule(c)) => {
-            let gap = segment_box_distance_squared(c.segment.a, c.segment.b, cuboid, pose).sqrt();
-            (gap - c.radius).max(0.0)
-        }
-        _ => {
-            let ((pa, sa), (pb, sb)) = (a.as_query(), b.as_query());
-            parry3d_f64::query::distance(&pa, sa, &pb, sb).map_or(0.0, |d| d.distance.max(0.0))
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -382,6 +288,7 @@ mod tests {
     use crate::robot::collision::Obstacle;
     use crate::robot::ur5::JOINT_LIMITS;
     use crate::tree::{ScaParams, generate};
+    use nalgebra::Point3;
     use nalgebra::Vector3;
     use rand::{RngExt, SeedableRng};
 
@@ -422,7 +329,7 @@ mod tests {
                 limit(distance(shape, fixed), rate)?;
             }
         }
-        let self_clearance = min_clearance.min(crate::robot::collision::SELF_CLEARANCE);
+        let self_clearance = min_clearance.min(SELF_CLEARANCE);
         for (k, &(i, j)) in model.self_pairs.iter().enumerate() {
             let (d, rate) = (distance(&world[i].0, &world[j].0), rates.self_pairs[k]);
             if rate > 0.0 {

@@ -3,12 +3,14 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 use parry3d_f64::shape::{Capsule, Cuboid, Cylinder};
 
-use super::{Aabb, WorldShape, pose, vec3};
-use crate::robot::link_geometry::LinkShape;
+use crate::geometry::aabb::Aabb;
+use crate::geometry::convert::{pose, vec3};
+use crate::geometry::world_shape::WorldShape;
+use crate::robot::model::link_geometry::LinkShape;
 
 /// A link's shape placed at the link's world pose `p`, grown by `margin`,
 /// with its (exact) bounding box.
-pub(super) fn world_shape(
+pub(crate) fn world_shape(
     shape: &LinkShape,
     p: &Isometry3<f64>,
     margin: f64,

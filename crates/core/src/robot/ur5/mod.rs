@@ -18,11 +18,13 @@
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
-use super::arm::Arm;
-use super::description::{PerJoint, PoseSpec, RobotConfig, RobotDescription, ToolSpec};
-pub use super::dh::{DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
-use super::import::describe;
-use super::joint_vector::JointVector;
+use crate::robot::arm::Arm;
+pub use crate::robot::kinematics::dh::{DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
+use crate::robot::model::description::{
+    PerJoint, PoseSpec, RobotConfig, RobotDescription, ToolSpec,
+};
+use crate::robot::model::import::describe;
+use crate::robot::model::joint_vector::JointVector;
 use nalgebra::Isometry3;
 
 pub const JOINT_NAMES: [&str; 6] = [
@@ -64,25 +66,8 @@ pub const HOME: JointVector = JointVector::new([
 /// The paper's mount: `base_link` at (−0.5, 0, 0.1) m from the tree root,
 /// identity orientation.
 pub fn default_base() -> Isometry3<f64> {
-    Isometry3::translation(-0.5, 0.0, 0.1)
+    crate::robot::arm::PAPER_BASE
 }
-
-/// Length of the standoff between flange and palm (m).
-pub const MOUNT_LENGTH: f64 = 0.06;
-/// Cross-section of the standoff (m).
-pub const MOUNT_WIDTH: f64 = 0.04;
-/// Palm thickness (m).
-pub const PALM_THICKNESS: f64 = 0.01;
-/// Distance of the tool frame (palm face) from the flange (m).
-pub const TOOL_OFFSET: f64 = MOUNT_LENGTH + PALM_THICKNESS;
-/// Finger length beyond the palm (m): the slot depth.
-pub const FINGER_LENGTH: f64 = 0.05;
-/// Width of the slot between the fingers (m).
-pub const SLOT_WIDTH: f64 = 0.02;
-/// Finger thickness across the slot (m).
-pub const FINGER_THICKNESS: f64 = 0.02;
-/// Extent of palm and fingers along the slot (m).
-pub const GRIPPER_DEPTH: f64 = 0.04;
 
 /// A capsule around (part of) a link, in the link's frame (m).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -171,49 +156,6 @@ pub const ARM_CAPSULES: [CapsuleSpec; 12] = [
         a: [0.0000, 0.0014, -0.0204],
         b: [0.0000, -0.0034, -0.0209],
         radius: 0.0409,
-    },
-];
-
-/// A box of the gripper, in the flange frame: centre and full size (m).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoxSpec {
-    pub link: &'static str,
-    pub centre: [f64; 3],
-    pub size: [f64; 3],
-}
-
-pub const GRIPPER_BOXES: [BoxSpec; 4] = [
-    BoxSpec {
-        link: "gripper_mount",
-        centre: [0.0, 0.0, MOUNT_LENGTH / 2.0],
-        size: [MOUNT_WIDTH, MOUNT_WIDTH, MOUNT_LENGTH],
-    },
-    BoxSpec {
-        link: "gripper_palm",
-        centre: [0.0, 0.0, MOUNT_LENGTH + PALM_THICKNESS / 2.0],
-        size: [
-            GRIPPER_DEPTH,
-            SLOT_WIDTH + 2.0 * FINGER_THICKNESS,
-            PALM_THICKNESS,
-        ],
-    },
-    BoxSpec {
-        link: "gripper_finger_left",
-        centre: [
-            0.0,
-            (SLOT_WIDTH + FINGER_THICKNESS) / 2.0,
-            TOOL_OFFSET + FINGER_LENGTH / 2.0,
-        ],
-        size: [GRIPPER_DEPTH, FINGER_THICKNESS, FINGER_LENGTH],
-    },
-    BoxSpec {
-        link: "gripper_finger_right",
-        centre: [
-            0.0,
-            -(SLOT_WIDTH + FINGER_THICKNESS) / 2.0,
-            TOOL_OFFSET + FINGER_LENGTH / 2.0,
-        ],
-        size: [GRIPPER_DEPTH, FINGER_THICKNESS, FINGER_LENGTH],
     },
 ];
 

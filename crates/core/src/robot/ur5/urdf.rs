@@ -10,7 +10,8 @@ use urdf_rs::{
     Vec3,
 };
 
-use super::*;
+use crate::robot::model::tool::*;
+use crate::robot::ur5::*;
 
 /// The transform of joint i's origin in its parent link:
 /// T_x(a_{i−1}) R_x(α_{i−1}) T_z(d_i), with a_{−1} = α_{−1} = 0.

@@ -1,0 +1,15 @@
+//! Geometry shared by the robot, the planner and the server: one place for
+//! the conversions into parry's types and the queries built on them.
+//!
+//! - [`convert`]: nalgebra vectors and isometries as parry's `Vec3` and
+//!   `Pose` (parry 0.31 has its own math types).
+
+//! - [`aabb`]: axis-aligned boxes, the prefilter of every query;
+//! - [`world_shape`]: capsules, boxes and cylinders placed in the world,
+//!   whether two touch and their distance;
+//! - [`segment_box`]: a segment's distance to a box, in closed form.
+
+pub mod aabb;
+pub mod convert;
+pub mod segment_box;
+pub mod world_shape;

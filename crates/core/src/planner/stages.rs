@@ -1,0 +1,427 @@
+//! Planning on a tree whose stiffness is known, stage by stage: propose
+//! pushes (the policy's ranking or the tree's geometry), search them with
+//! a predictor, execute the best on the arm, fall back to Algorithm 1's
+//! ranked walk, and answer.
+
+use std::time::Instant;
+
+use crate::planner::answer::{Clearance, Plan, PlanError};
+use crate::planner::base::{self, BasePose};
+use crate::planner::execute::{Run, SimulatedHold};
+use crate::planner::objective::{Limits, Objective};
+use crate::planner::placed::{Placed, Planner};
+use crate::planner::predict::{ContactPolicy, PhysicsPredictor, Predictor};
+use crate::planner::query::{Query, Stance, Strategy};
+use crate::planner::refine;
+use crate::planner::search::{self, SearchOptions, score, search_pushes};
+use crate::planner::seeds::{self, interleave, ranked};
+use crate::robot::collision::{Allowed, TreeObstacles};
+use crate::robot::motion::push_motion::{Outcome, PushPlan};
+use crate::robot::motion::rrt::{Config, MotionValidator};
+use crate::robot::motion::scene::PlanningScene;
+use crate::sim::Push;
+use crate::tree::Tree;
+
+/// Predictions the fallback to the policy's own pushes may make even when
+/// the search spent the budget (the reachable ones, best ranked first).
+pub const FALLBACK_PREDICTIONS: usize = 8;
+
+/// Nodes searched by default when the geometry proposes them (`clear`,
+/// `reach`, a weighted shape): its proposals are cruder than the policy's,
+/// so more are tried (an intruding branch and its ancestors).
+pub const DEFAULT_GEOMETRIC_CANDIDATES: usize = 6;
+/// Over-limit pushes better than the one executed that are reported.
+const MAX_OVER_LIMIT_NOTED: usize = 4;
+/// How far over a limit a `model` prediction may read and still be
+/// checked by simulation: loads read from the forward model's positions err
+/// by a median 12 % and a p90 of 68 % in stress (`docs/results/tasks_eval.md`),
+/// so a strict screen drops pushes that are in fact within the limits (on
+/// 105 `clear` tasks with a base region, a screen at 1.0× met 74.6 % of the
+/// tasks the oracle meets, 1.5× 86.4 %, 2.0× 91.5 %, with no executed push
+/// over a limit in any).
+const MODEL_LOAD_SLACK: f64 = 2.0;
+/// Pushes whose simulation is checked (loads, and for `model` a `clear` or
+/// `reach` objective) at most: one simulation each, no arm work.
+const MAX_SIMULATED_CHECKS: usize = 24;
+/// Pushes executed (push check and RRT*) at most, best predicted first.
+const MAX_EXECUTIONS: usize = 6;
+impl Planner {
+    /// The cheap reach test the push search prunes with, for pushes on
+    /// `tree` by the arm at `stance` (a base region: any of its proposed
+    /// placements) from `start` (default: home): IK of the pre-contact
+    /// pose, joint limits, a collision-free pre-contact configuration and a
+    /// straight push. For proposing only pushes the arm can make (probes).
+    pub fn reach_test<'a>(
+        &'a self,
+        tree: &'a Tree,
+        obstacles: &[crate::robot::collision::Obstacle],
+        stance: &'a Stance,
+        start: Option<Config>,
+    ) -> impl Fn(&Push) -> bool + Sync + 'a {
+        let rest = TreeObstacles::new(tree).with_obstacles(obstacles);
+        let fixed = match stance {
+            Stance::Fixed(base) => Some(self.placed_at(base)),
+            Stance::Region(_) => None,
+        };
+        let start = start.unwrap_or_else(|| self.robot().home());
+        move |push: &Push| match (&fixed, stance) {
+            (Some(arm), _) => {
+                crate::robot::motion::push_motion::reach(arm, tree, &rest, push, &start).is_ok()
+            }
+            (None, Stance::Region(region)) => {
+                crate::planner::execute::reach_in_region(self, region, tree, &rest, push).is_ok()
+            }
+            (None, Stance::Fixed(_)) => false,
+        }
+    }
+
+    /// Plans `query` on its tree's stiffness as given (no observations),
+    /// the searching strategies also starting from the pushes in `again`.
+    pub(crate) fn plan_known(
+        &self,
+        query: &Query,
+        policy: &dyn ContactPolicy,
+        forward: Option<&dyn Predictor>,
+        again: &[Push],
+    ) -> Result<Plan, PlanError> {
+        let clock = Instant::now();
+        let tree = &query.tree;
+        let objective = &query.objective;
+        let rest = TreeObstacles::new(tree).with_obstacles(&query.obstacles);
+        // The pushes proposed, with their rank: the policy's for a full
+        // shape (and any shape for `paper`), the geometry's otherwise.
+        let proposals: Vec<(usize, Push)> = match (objective, query.strategy) {
+            (Objective::Shape { targets, .. }, Strategy::Paper) => ranked(policy, tree, targets)?,
+            (_, Strategy::Paper) => return Err(PlanError::PaperNeedsShape(objective.kind())),
+            (Objective::Shape { targets, .. }, _) if objective.full_shape().is_some() => {
+                ranked(policy, tree, targets)?
+            }
+            _ => {
+                let geometric = seeds::geometric_seeds(
+                    tree,
+                    objective,
+                    query.max_candidates.max(DEFAULT_GEOMETRIC_CANDIDATES),
+                );
+                // A weighted shape still has targets for every node: the
+                // policy's ranking for them is a second opinion, taken in
+                // turns with the geometry's.
+                let policy_pushes = match objective {
+                    Objective::Shape { targets, .. } => ranked(policy, tree, targets)?
+                        .into_iter()
+                        .map(|(_, p)| p)
+                        .collect(),
+                    _ => Vec::new(),
+                };
+                interleave(&geometric, &policy_pushes)
+                    .into_iter()
+                    .enumerate()
+                    .map(|(k, p)| (k + 1, p))
+                    .collect()
+            }
+        };
+        // How many of them the search starts from.
+        let searched = if objective.full_shape().is_some() {
+            query.max_candidates.max(1)
+        } else {
+            query.max_candidates.max(DEFAULT_GEOMETRIC_CANDIDATES)
+        };
+        let rank_of = |node: usize| {
+            proposals
+                .iter()
+                .find(|(_, p)| p.node == node)
+                .map_or(0, |(r, _)| *r)
+        };
+        let fixed = match &query.stance {
+            Stance::Fixed(base) => {
+                let arm = self.placed_at(base);
+                let free = PlanningScene::new(&arm, &rest, Allowed::default());
+                // No start given: home, or else the first free tucked pose.
+                let start = match query.start {
+                    Some(q) => Some(q).filter(|q| free.config_valid(q)),
+                    None => base::tucked_starts(&arm.robot)
+                        .into_iter()
+                        .find(|q| free.config_valid(q)),
+                };
+                let Some(start) = start else {
+                    return Err(PlanError::StartInCollision);
+                };
+                Some(Placed {
+                    pose: BasePose::of(base),
+                    arm,
+                    start,
+                })
+            }
+            Stance::Region(_) => None,
+        };
+        let enforce_limits = query.strategy != Strategy::Paper;
+        let limits = query.limits.filter(|_| enforce_limits);
+        // The limits the search screens predictions with: for `model`,
+        // loosened by its load error (the simulation of each push about to
+        // be executed is held to the limits themselves).
+        let screen = limits.map(|l| match query.strategy {
+            Strategy::Model => Limits {
+                max_stress: l.max_stress * MODEL_LOAD_SLACK,
+                max_contact_force: l.max_contact_force * MODEL_LOAD_SLACK,
+            },
+            _ => l,
+        });
+        let mut run = Run {
+            planner: self,
+            query,
+            rest: &rest,
+            fixed: &fixed,
+            clock,
+            attempts: Vec::new(),
+            no_path: Vec::new(),
+            enforce_limits,
+            verify: query.strategy == Strategy::Model && objective.has_goal_region(),
+            missed: Vec::new(),
+        };
+        let no_action_error = objective.residual(tree, tree.positions());
+        let mut evaluations = 0;
+        let mut found: Option<Found> = None;
+        let physics = PhysicsPredictor;
+        let predictor: Option<&dyn Predictor> = match query.strategy {
+            Strategy::Paper => None,
+            Strategy::Physics => Some(&physics),
+            Strategy::Model => Some(forward.ok_or(PlanError::NoForwardModel)?),
+        };
+        if let Some(predictor) = predictor {
+            let seeds: Vec<Push> = proposals
+                .iter()
+                .take(searched)
+                .map(|(_, p)| *p)
+                .chain(again.iter().copied())
+                .collect();
+            let options = SearchOptions {
+                max_evaluations: query.evaluations(),
+                seed: query.seed,
+                ..SearchOptions::default()
+            };
+            let feasible = |p: &Push| run.reachable(p);
+            let (scored, count) = search_pushes(
+                tree,
+                objective,
+                screen.as_ref(),
+                &seeds,
+                predictor,
+                &feasible,
+                &options,
+            )?;
+            evaluations = count;
+            // Physics pushes are polished (see `refine`).
+            let scored = if query.strategy == Strategy::Physics {
+                let (mut polished, count) = refine::refine(
+                    tree,
+                    objective,
+                    screen.as_ref(),
+                    &scored,
+                    predictor,
+                    &feasible,
+                    refine::PHYSICS_REFINE_EVALUATIONS,
+                )?;
+                evaluations += count;
+                polished.extend(scored);
+                search::sort_scored(&mut polished, objective);
+                polished
+            } else {
+                scored
+            };
+            let mut executed = 0;
+            let mut checked = 0;
+            let mut over_limit = 0;
+            for s in &scored {
+                let rank = rank_of(s.push.node);
+                if !s.within_limits {
+                    // Sorted after every push within the limits: only the
+                    // ones reached here, none of those left, are noted.
+                    if over_limit < MAX_OVER_LIMIT_NOTED {
+                        run.note(rank, &s.push, Outcome::OverLimit, Some(s), 0.0);
+                    }
+                    over_limit += 1;
+                    continue;
+                }
+                if executed >= MAX_EXECUTIONS || checked >= MAX_SIMULATED_CHECKS {
+                    break;
+                }
+                if s.predicted_error >= no_action_error {
+                    run.note(rank, &s.push, Outcome::NotHelpful, Some(s), 0.0);
+                    break;
+                }
+                let tried = run.try_push(rank, &s.push, Some(s));
+                // A push passed over on its simulation alone cost no arm
+                // work: it counts against the simulated checks only.
+                checked += 1;
+                if !matches!(
+                    run.attempts.last().map(|a| a.outcome),
+                    Some(Outcome::OverLimit | Outcome::Missed)
+                ) {
+                    executed += 1;
+                }
+                if let Some((plan, placed, simulated)) = tried {
+                    found = Some(Found {
+                        plan,
+                        placed,
+                        predicted: Some(*s),
+                        simulated,
+                    });
+                    break;
+                }
+            }
+        }
+        if found.is_none() {
+            // Algorithm 1 as published; for the searching strategies the
+            // fallback when no searched push could be carried out: the
+            // proposed pushes the arm can reach (the reach test costs far
+            // less than a prediction, and most low-ranked pushes fail it
+            // from a fixed base), the best ranked predicted in one batch
+            // (what is left of the evaluation budget, at least
+            // FALLBACK_PREDICTIONS) and the unhelpful and overloading ones
+            // dropped.
+            let proposals: Vec<(usize, Push)> = match predictor {
+                None => proposals,
+                Some(_) => proposals
+                    .into_iter()
+                    .filter(|(rank, push)| match run.reach_check(push) {
+                        Ok(()) => true,
+                        Err(outcome) => {
+                            run.note(*rank, push, outcome, None, 0.0);
+                            false
+                        }
+                    })
+                    .collect(),
+            };
+            let predicted: Vec<Option<search::Scored>> = match predictor {
+                None => vec![None; proposals.len()],
+                Some(p) => {
+                    let left = query
+                        .evaluations()
+                        .saturating_sub(evaluations)
+                        .max(FALLBACK_PREDICTIONS);
+                    let pushes: Vec<Push> = proposals.iter().take(left).map(|(_, p)| *p).collect();
+                    evaluations += pushes.len();
+                    let predictions = p.predict(tree, &pushes)?;
+                    let mut scored = score(tree, objective, screen.as_ref(), &pushes, predictions);
+                    scored.resize(proposals.len(), None);
+                    scored
+                }
+            };
+            // Predicted ones in the search's order, the rest as ranked (a
+            // stable sort).
+            let mut order: Vec<usize> = (0..proposals.len()).collect();
+            order.sort_by(|&a, &b| match (&predicted[a], &predicted[b]) {
+                (Some(x), Some(y)) => search::compare(x, y, objective),
+                (Some(_), None) => std::cmp::Ordering::Less,
+                (None, Some(_)) => std::cmp::Ordering::Greater,
+                (None, None) => std::cmp::Ordering::Equal,
+            });
+            for k in order {
+                let (rank, push) = &proposals[k];
+                let scored = predicted[k];
+                if predictor.is_some() {
+                    let Some(s) = scored else {
+                        // Beyond the predictions allowed (or rejected by
+                        // the simulator): a searching strategy never
+                        // executes a push it has not predicted.
+                        run.note(*rank, push, Outcome::Skipped, None, 0.0);
+                        continue;
+                    };
+                    let outcome = if !s.within_limits {
+                        Some(Outcome::OverLimit)
+                    } else if s.predicted_error >= no_action_error {
+                        Some(Outcome::NotHelpful)
+                    } else {
+                        None
+                    };
+                    if let Some(outcome) = outcome {
+                        run.note(*rank, push, outcome, Some(&s), 0.0);
+                        continue;
+                    }
+                }
+                if let Some((plan, placed, simulated)) = run.try_push(*rank, push, scored.as_ref())
+                {
+                    found = Some(Found {
+                        plan,
+                        placed,
+                        predicted: scored,
+                        simulated,
+                    });
+                    break;
+                }
+            }
+        }
+        if found.is_none() {
+            // Nothing met the objective: the missed push that came closest
+            // in its simulation, if it helps at all.
+            let mut missed = std::mem::take(&mut run.missed);
+            missed.sort_by(|a, b| a.1.predicted_error.total_cmp(&b.1.predicted_error));
+            run.verify = false;
+            for (rank, seen) in missed.into_iter().take(2) {
+                if seen.predicted_error >= no_action_error {
+                    break;
+                }
+                // Carried out for what its simulation gave: that is what is
+                // reported as predicted too.
+                if let Some((plan, placed, simulated)) = run.try_push(rank, &seen.push, Some(&seen))
+                {
+                    found = Some(Found {
+                        plan,
+                        placed,
+                        predicted: Some(seen),
+                        simulated,
+                    });
+                    break;
+                }
+            }
+        }
+        let attempts = run.attempts;
+        let home = self.robot().home();
+        let (base, start, start_chosen) = match (&found, &fixed) {
+            (Some(f), _) => (
+                f.placed.pose,
+                f.placed.start,
+                query.start.is_none() && (fixed.is_none() || f.placed.start != home),
+            ),
+            (None, Some(f)) => (f.pose, f.start, query.start.is_none() && f.start != home),
+            (None, None) => (
+                BasePose::of(&self.robot().default_base()),
+                query.start.unwrap_or_else(|| self.robot().home()),
+                false,
+            ),
+        };
+        Ok(Plan {
+            strategy: query.strategy,
+            objective: objective.kind(),
+            base,
+            start,
+            start_chosen,
+            predicted_error: found
+                .as_ref()
+                .and_then(|f| f.predicted.map(|s| s.predicted_error)),
+            no_action_error,
+            predicted_loads: found.as_ref().and_then(|f| f.predicted.map(|s| s.loads)),
+            simulated_loads: found.as_ref().and_then(|f| f.simulated.map(|s| s.loads)),
+            clearance: found.as_ref().and_then(|f| {
+                matches!(objective, Objective::Clear { .. }).then_some(Clearance {
+                    predicted: f.predicted.and_then(|s| s.clearance),
+                    simulated: f.simulated.and_then(|s| s.clearance),
+                })
+            }),
+            limits,
+            plan: found.map(|f| f.plan),
+            evaluations,
+            attempts,
+            total_ms: clock.elapsed().as_secs_f64() * 1e3,
+            identification: None,
+        })
+    }
+}
+
+/// A push carried out, with what was predicted and simulated of it.
+struct Found {
+    plan: PushPlan,
+    placed: Placed,
+    /// What was predicted of it (`None` for `paper`).
+    predicted: Option<search::Scored>,
+    simulated: Option<SimulatedHold>,
+}

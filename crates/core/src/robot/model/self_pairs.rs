@@ -1,0 +1,312 @@
+//! Which pairs of an arm's links never need a self-collision check, found
+//! the way MoveIt's setup assistant finds them.
+//!
+//! - **adjacent**: links joined by a joint (and links welded together by
+//!   fixed joints count as one link, so their neighbours are adjacent to
+//!   every one of them): their shapes overlap at the joint by design;
+//! - **never**: no collision at any of `samples` random configurations
+//!   inside the joint limits (the pair cannot reach each other);
+//! - **always**: a collision at every sample (the shapes overlap whatever
+//!   the joints do: a checker would refuse every configuration).
+//!
+//! Every other pair collides at some configurations and not at others and
+//! stays checked. Joints off the chain (fingers, a gripper) stay at zero,
+//! as the planner holds them; a `mimic` joint follows its leader.
+
+use std::collections::HashMap;
+
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, Shape};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::convert::{pose, vec3};
+use crate::robot::model::urdf_chain::{Chain, isometry, random_configuration};
+
+use crate::robot::model::link_geometry::{LinkGeometry, LinkShape};
+
+/// Why a pair is not checked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DisableReason {
+    Adjacent,
+    Never,
+    Always,
+    /// Named in the robot's configuration.
+    Configured,
+    /// Named in the robot's SRDF.
+    Srdf,
+}
+
+/// A pair of links left out of self-collision checks.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DisabledPair {
+    pub a: String,
+    pub b: String,
+    pub reason: DisableReason,
+}
+
+/// Parry shapes, each with its pose in its link's frame.
+type PlacedShapes = Vec<(Isometry3<f64>, Box<dyn Shape>)>;
+
+/// A link's shapes as parry shapes, each with its pose in the link frame.
+fn parry_shapes(shapes: &[LinkShape]) -> PlacedShapes {
+    shapes
+        .iter()
+        .map(|s| -> (Isometry3<f64>, Box<dyn Shape>) {
+            match s {
+                LinkShape::Box { pose, half_extents } => {
+                    (*pose, Box::new(Cuboid::new(vec3(half_extents))))
+                }
+                LinkShape::Cylinder {
+                    pose,
+                    radius,
+                    half_length,
+                } => {
+                    // parry's cylinders stand along y, URDF's along z.
+                    let z_to_y = UnitQuaternion::from_axis_angle(
+                        &Vector3::x_axis(),
+                        std::f64::consts::FRAC_PI_2,
+                    );
+                    (
+                        pose * Isometry3::from_parts(Default::default(), z_to_y),
+                        Box::new(Cylinder::new(*half_length, *radius)),
+                    )
+                }
+                LinkShape::Sphere { center, radius } => (
+                    Isometry3::translation(center.x, center.y, center.z),
+                    Box::new(Ball::new(*radius)),
+                ),
+                LinkShape::Capsule(c) => (
+                    Isometry3::identity(),
+                    Box::new(Capsule::new(vec3(&c.a.coords), vec3(&c.b.coords), c.radius)),
+                ),
+            }
+        })
+        .collect()
+}
+
+/// A URDF joint ready to be placed: its origin, its motion per unit of
+/// value, and where its value comes from.
+struct PlacedJoint<'a> {
+    child: &'a str,
+    origin: Isometry3<f64>,
+    kind: urdf_rs::JointType,
+    axis: Vector3<f64>,
+    /// Its value: multiplier × the chain variable it follows (itself, or
+    /// its mimic leader; none off the chain, which holds it at zero) +
+    /// offset.
+    source: (Option<usize>, f64, f64),
+}
+
+/// The URDF's link tree, read once, placing every link for any
+/// configuration of the chain (joints off the chain at zero, mimic joints
+/// following their leader).
+pub struct LinkTree<'a> {
+    roots: Vec<&'a str>,
+    children: HashMap<&'a str, Vec<PlacedJoint<'a>>>,
+}
+
+impl<'a> LinkTree<'a> {
+    pub fn new(robot: &'a urdf_rs::Robot, chain: &Chain) -> Self {
+        let variable = |name: &str| {
+            chain
+                .joints
+                .iter()
+                .find(|j| j.name == name)
+                .and_then(|j| j.variable)
+        };
+        let is_child: std::collections::HashSet<&str> =
+            robot.joints.iter().map(|j| j.child.link.as_str()).collect();
+        let mut children: HashMap<&str, Vec<PlacedJoint>> = HashMap::new();
+        for j in &robot.joints {
+            let axis = Vector3::from(j.axis.xyz.0);
+            let source = match &j.mimic {
+                Some(m) => (
+                    variable(&m.joint),
+                    m.multiplier.unwrap_or(1.0),
+                    m.offset.unwrap_or(0.0),
+                ),
+                None => (variable(&j.name), 1.0, 0.0),
+            };
+            children
+                .entry(j.parent.link.as_str())
+                .or_default()
+                .push(PlacedJoint {
+                    child: j.child.link.as_str(),
+                    origin: isometry(&j.origin),
+                    kind: j.joint_type.clone(),
+                    axis: if axis.norm() > 0.0 {
+                        axis.normalize()
+                    } else {
+                        Vector3::x()
+                    },
+                    source,
+                });
+        }
+        Self {
+            roots: robot
+                .links
+                .iter()
+                .map(|l| l.name.as_str())
+                .filter(|l| !is_child.contains(l))
+                .collect(),
+            children,
+        }
+    }
+
+    /// Every link's pose (relative to the URDF's root) at the chain's
+    /// configuration `q`; links not reached from the root are left out.
+    pub fn poses(&self, q: &[f64]) -> HashMap<String, Isometry3<f64>> {
+        let mut poses = HashMap::new();
+        let mut stack: Vec<(&str, Isometry3<f64>)> = self
+            .roots
+            .iter()
+            .map(|l| (*l, Isometry3::identity()))
+            .collect();
+        while let Some((link, pose)) = stack.pop() {
+            if poses.insert(link.to_owned(), pose).is_some() {
+                continue;
+            }
+            for j in self.children.get(link).into_iter().flatten() {
+                let (variable, multiplier, offset) = j.source;
+                let value =
+                    variable.and_then(|v| q.get(v)).copied().unwrap_or(0.0) * multiplier + offset;
+                let motion = match j.kind {
+                    urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
+                        Isometry3::rotation(j.axis * value)
+                    }
+                    urdf_rs::JointType::Prismatic => {
+                        Isometry3::translation(j.axis.x * value, j.axis.y * value, j.axis.z * value)
+                    }
+                    _ => Isometry3::identity(),
+                };
+                stack.push((j.child, pose * j.origin * motion));
+            }
+        }
+        poses
+    }
+}
+
+/// Every link's pose at the chain's configuration `q` (see
+/// [`LinkTree::poses`]; build a [`LinkTree`] once to place many).
+pub fn all_link_poses(
+    robot: &urdf_rs::Robot,
+    chain: &Chain,
+    q: &[f64],
+) -> HashMap<String, Isometry3<f64>> {
+    LinkTree::new(robot, chain).poses(q)
+}
+
+/// Groups of links welded by fixed joints: each link's group index.
+fn welded_groups(robot: &urdf_rs::Robot) -> HashMap<String, usize> {
+    let mut group: HashMap<String, usize> = robot
+        .links
+        .iter()
+        .enumerate()
+        .map(|(k, l)| (l.name.clone(), k))
+        .collect();
+    // Merge until stable (a handful of passes for any real arm).
+    loop {
+        let mut changed = false;
+        for j in &robot.joints {
+            if j.joint_type == urdf_rs::JointType::Fixed {
+                let (a, b) = (group[&j.parent.link], group[&j.child.link]);
+                if a != b {
+                    let (keep, drop) = (a.min(b), a.max(b));
+                    for g in group.values_mut() {
+                        if *g == drop {
+                            *g = keep;
+                        }
+                    }
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            return group;
+        }
+    }
+}
+
+/// The pairs of links with collision geometry that need no check (see the
+/// module's documentation), over `samples` random configurations of
+/// `chain` drawn with `seed`.
+pub fn disabled_pairs(
+    robot: &urdf_rs::Robot,
+    chain: &Chain,
+    geometry: &[LinkGeometry],
+    samples: usize,
+    seed: u64,
+) -> Vec<DisabledPair> {
+    let group = welded_groups(robot);
+    let adjacent = |a: &str, b: &str| {
+        let (ga, gb) = (group.get(a), group.get(b));
+        ga == gb
+            || robot.joints.iter().any(|j| {
+                let (p, c) = (group.get(&j.parent.link), group.get(&j.child.link));
+                (p == ga && c == gb) || (p == gb && c == ga)
+            })
+    };
+    let shapes: Vec<(&str, PlacedShapes)> = geometry
+        .iter()
+        .filter(|l| !l.shapes.is_empty())
+        .map(|l| (l.link.as_str(), parry_shapes(&l.shapes)))
+        .collect();
+    let mut out = Vec::new();
+    let mut pairs: Vec<(usize, usize)> = Vec::new();
+    for i in 0..shapes.len() {
+        for k in i + 1..shapes.len() {
+            if adjacent(shapes[i].0, shapes[k].0) {
+                out.push(DisabledPair {
+                    a: shapes[i].0.to_owned(),
+                    b: shapes[k].0.to_owned(),
+                    reason: DisableReason::Adjacent,
+                });
+            } else {
+                pairs.push((i, k));
+            }
+        }
+    }
+    let mut hits = vec![0usize; pairs.len()];
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let links = LinkTree::new(robot, chain);
+    for _ in 0..samples {
+        let q = random_configuration(chain, &mut rng);
+        let poses = links.poses(&q);
+        for (n, &(i, k)) in pairs.iter().enumerate() {
+            let (Some(pi), Some(pk)) = (poses.get(shapes[i].0), poses.get(shapes[k].0)) else {
+                continue;
+            };
+            let touch = shapes[i].1.iter().any(|(oi, si)| {
+                shapes[k].1.iter().any(|(ok, sk)| {
+                    parry3d_f64::query::intersection_test(
+                        &pose(&(pi * oi)),
+                        si.as_ref(),
+                        &pose(&(pk * ok)),
+                        sk.as_ref(),
+                    )
+                    // An unsupported pair counts as touching: the pair
+                    // then stays checked unless it always touches.
+                    .map_or(true, |hit| hit.intersecting)
+                })
+            });
+            hits[n] += usize::from(touch);
+        }
+    }
+    // With no samples, nothing is known of the other pairs: all stay checked.
+    for (&(i, k), &h) in pairs.iter().zip(&hits).filter(|_| samples > 0) {
+        let reason = match h {
+            0 => DisableReason::Never,
+            h if h == samples => DisableReason::Always,
+            _ => continue,
+        };
+        out.push(DisabledPair {
+            a: shapes[i].0.to_owned(),
+            b: shapes[k].0.to_owned(),
+            reason,
+        });
+    }
+    out
+}
