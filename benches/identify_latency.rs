@@ -24,7 +24,7 @@ use treemanip::sim::ContactModel;
 use treemanip::tree::StiffnessVariation;
 
 #[allow(dead_code)] // the bench uses part of the tests' helper
-#[path = "../tests/it/common/server.rs"]
+#[path = "../crates/server/tests/it/common/server.rs"]
 mod server;
 
 fn main() {

@@ -25,7 +25,7 @@ use treemanip::eval::tasks::{TaskKind, make_task, task_rng};
 use treemanip::planner::{Objective, Region};
 
 #[allow(dead_code)] // the bench uses part of the tests' helper
-#[path = "../tests/it/common/server.rs"]
+#[path = "../crates/server/tests/it/common/server.rs"]
 mod server;
 
 fn main() {
@@ -84,7 +84,7 @@ fn main() {
             }
         }
     }
-    let base = treemanip::robot::ur5::default_base().translation.vector;
+    let base = treemanip::robot::arm::PAPER_BASE.translation.vector;
     let region = json!({ "base_region": {
         "min": [base.x - 0.5, base.y - 0.5, 0.1], "max": [base.x + 0.5, base.y + 0.5, 1.0] } });
     println!(

@@ -18,6 +18,7 @@ use std::time::{Duration, Instant};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use treemanip::robot::arm::PAPER_BASE;
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use treemanip::robot::kinematics::ur_closed_form;
 use treemanip::robot::motion::rrt::{Config, MotionValidator, RrtStarOptions, rrt_star};
@@ -373,7 +374,7 @@ fn fence_per_arm(runs: u64) {
             base: None,
         };
         let arm = treemanip::robot::catalog::load(&spec, &[]).expect("a shipped arm loads");
-        let model = CollisionModel::new(arm.with_base(ur5::default_base()));
+        let model = CollisionModel::new(arm.with_base(PAPER_BASE));
         let Some((start, goal, fence)) = across_fence(&model) else {
             println!("  {name:<6} no free start and goal either side of the fence: no query");
             continue;

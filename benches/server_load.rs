@@ -20,7 +20,7 @@ use treemanip::api::tree_json::TreeJson;
 use treemanip::tree::{ScaParams, generate};
 
 #[allow(dead_code)] // the bench uses part of the tests' helper
-#[path = "../tests/it/common/server.rs"]
+#[path = "../crates/server/tests/it/common/server.rs"]
 mod server;
 
 #[allow(dead_code)]

@@ -19,7 +19,7 @@ use treemanip::sim::{Push, SimConfig, simulate};
 use treemanip::tree::{ScaParams, generate};
 
 #[allow(dead_code)] // the bench uses part of the tests' helper
-#[path = "../tests/it/common/server.rs"]
+#[path = "../crates/server/tests/it/common/server.rs"]
 mod server;
 
 const CLIENTS: usize = 16;

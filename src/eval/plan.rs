@@ -16,7 +16,7 @@ use crate::infer::models::{ServedModel, rank_candidates};
 use crate::planner::base::BaseRegion;
 use crate::planner::predict::max_node_error;
 use crate::planner::{Planner, Query, Stance, Strategy};
-use crate::robot::ur5;
+use crate::robot::arm::PAPER_BASE;
 use crate::sim::{Push, SimConfig, simulate};
 use crate::tree::Tree;
 
@@ -57,7 +57,7 @@ impl Setting {
 /// The region of the evaluation: the default base ±0.5 m in x and y,
 /// 0.1-1.0 m high.
 pub fn evaluation_region() -> BaseRegion {
-    let base = ur5::default_base().translation.vector;
+    let base = PAPER_BASE.translation.vector;
     BaseRegion {
         min: Vector3::new(base.x - 0.5, base.y - 0.5, 0.1),
         max: Vector3::new(base.x + 0.5, base.y + 0.5, 1.0),

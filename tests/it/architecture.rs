@@ -89,6 +89,46 @@ fn the_server_builds_without_the_trainer_and_without_tract() {
     println!("treemanip-server: {} crates", server.len());
 }
 
+/// `cargo test -p treemanip-core` and `cargo test -p treemanip-server` build
+/// their own tests without the trainer or tract: their graphs with
+/// dev-dependencies hold neither.
+#[test]
+fn core_and_server_tests_build_without_the_trainer() {
+    for package in ["treemanip-core", "treemanip-server"] {
+        let crates: Vec<String> = {
+            let mut c: Vec<String> = cargo_tree(&[
+                "-p",
+                package,
+                "-e",
+                "normal,build,dev",
+                "--prefix",
+                "none",
+                "--no-dedupe",
+            ])
+            .lines()
+            .filter_map(|l| {
+                let mut words = l.split_whitespace();
+                Some(format!("{} {}", words.next()?, words.next()?))
+            })
+            .collect();
+            c.sort();
+            c.dedup();
+            c
+        };
+        let found: Vec<&str> = names(&crates)
+            .into_iter()
+            .filter(|n| {
+                ["burn", "gemm", "tract", "plotters"]
+                    .iter()
+                    .any(|f| n == f || n.starts_with(&format!("{f}-")))
+                    || *n == "treemanip"
+            })
+            .collect();
+        assert!(found.is_empty(), "{package}'s tests depend on {found:?}");
+        println!("{package} with its tests: {} crates", crates.len());
+    }
+}
+
 /// The container image's binary: `treemanip` without the `train` feature
 /// (Dockerfile), which runs `serve` and the dataset Jobs.
 #[test]
@@ -153,7 +193,7 @@ fn lower_crates_do_not_depend_on_higher_ones() {
 }
 
 /// Rust and JavaScript files of ours (vendored files aside).
-fn sources(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+pub(crate) fn sources(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
     for entry in std::fs::read_dir(dir).unwrap() {
         let path = entry.unwrap().path();
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
@@ -189,4 +229,60 @@ fn no_file_of_ours_is_over_600_lines() {
         })
         .collect();
     assert!(long.is_empty(), "over 600 lines: {long:?}");
+}
+
+mod imports;
+
+#[test]
+fn no_import_circle_between_files() {
+    for krate in ["crates/core", "crates/infer", "crates/server", "."] {
+        let graph = imports::graph(&Path::new(ROOT).join(krate).join("src"));
+        let circles = imports::circles(&graph);
+        let edges: usize = graph.edges.values().map(|e| e.len()).sum();
+        println!(
+            "{krate}: {} files, {edges} edges, {} circles",
+            graph.files,
+            circles.len()
+        );
+        assert!(graph.files > 3 && edges > 0, "{krate}: nothing read");
+        let named: Vec<String> = circles
+            .iter()
+            .map(|c| {
+                c.iter()
+                    .map(|m| m.join("/"))
+                    .collect::<Vec<_>>()
+                    .join(" <-> ")
+            })
+            .collect();
+        assert!(named.is_empty(), "{krate}: import circles: {named:#?}");
+    }
+}
+
+/// The checker finds a circle where one is: two files naming each other's
+/// items, one through a re-export.
+#[test]
+fn the_import_checker_sees_a_circle() {
+    let dir = std::env::temp_dir().join(format!("treemanip-imports-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("a")).unwrap();
+    std::fs::write(
+        dir.join("lib.rs"),
+        "pub mod a;\npub mod b;\npub use b::Thing;\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("a/mod.rs"), "mod c;\npub use c::Other;\n").unwrap();
+    std::fs::write(
+        dir.join("a/c.rs"),
+        "use crate::Thing;\npub struct Other(Thing);\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("b.rs"), "pub struct Thing;\nfn f() -> crate::a::Other { todo!() }\n#[cfg(test)]\nmod tests { use super::*; }\n").unwrap();
+    let graph = imports::graph(&dir);
+    let circles = imports::circles(&graph);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let as_names: Vec<Vec<String>> = circles
+        .iter()
+        .map(|c| c.iter().map(|m| m.join("/")).collect())
+        .collect();
+    assert_eq!(as_names, vec![vec!["a/c".to_owned(), "b".to_owned()]]);
 }

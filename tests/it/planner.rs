@@ -7,8 +7,6 @@ use std::path::Path;
 use std::time::Duration;
 
 use nalgebra::{Point3, Vector3};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use treemanip::infer::models::{ModelSet, ServedModel};
 use treemanip::planner::predict::max_node_error;
 use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
@@ -17,9 +15,10 @@ use treemanip::robot::arm::tool_line::APPROACH_OFFSET;
 use treemanip::robot::collision::{Allowed, CollisionModel, Hit, Obstacle, TreeObstacles};
 use treemanip::robot::kinematics::dh::JOINT_LIMITS;
 use treemanip::robot::motion::push_motion::Outcome;
-use treemanip::sim::sampling::PushDistribution;
 use treemanip::sim::{Push, SimConfig, simulate};
-use treemanip::tree::{ScaParams, Tree, generate};
+use treemanip::tree::Tree;
+
+use crate::common::episode;
 
 pub(crate) fn models() -> ModelSet {
     ModelSet::load_dir(Path::new("models"), None, 1, false).expect("the committed models load")
@@ -31,18 +30,6 @@ pub(crate) fn policy_and_forward(set: &ModelSet) -> (&ServedModel, &ServedModel)
         set.get("policy_gnn").unwrap(),
         set.get("forward_gnn").unwrap(),
     )
-}
-
-/// A random tree and the target made by a random paper-style push.
-pub(crate) fn episode(n: usize, seed: u64) -> (Tree, Vec<Point3<f64>>) {
-    let tree = generate(n, seed, &ScaParams::default()).unwrap();
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    loop {
-        let push = PushDistribution::default().sample(&tree, &mut rng);
-        if let Ok(o) = simulate(&tree, &push, &SimConfig::default()) {
-            return (tree, o.final_positions);
-        }
-    }
 }
 
 /// What the gripper may touch at the pre-contact pose: the contacted

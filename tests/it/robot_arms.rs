@@ -9,12 +9,13 @@ use std::time::Duration;
 
 use nalgebra::{Isometry3, Matrix4, Rotation3, UnitQuaternion, Vector3};
 use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
+use treemanip::robot::arm::PAPER_BASE;
 use treemanip::robot::arm::tool_line::APPROACH_OFFSET;
 use treemanip::robot::catalog::{self, RobotSpec};
 use treemanip::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use treemanip::robot::model::description::RobotDescription;
 use treemanip::robot::motion::ros::JointTrajectory;
-use treemanip::robot::ur5;
+
 use treemanip::robot::{Arm, BaseStance, PROBE_PUSHES, UR5_REACH};
 
 /// The shipped descriptions (`robots/*.toml`).
@@ -35,7 +36,7 @@ pub fn shipped(name: &str) -> Arm {
 fn every_shipped_arms_home_is_free_at_the_default_mount() {
     let empty = TreeObstacles::empty();
     for name in SHIPPED {
-        let arm = shipped(name).with_base(ur5::default_base());
+        let arm = shipped(name).with_base(PAPER_BASE);
         let home = arm.home();
         let model = CollisionModel::new(arm);
         assert_eq!(
@@ -246,13 +247,11 @@ fn every_arm_plans_trajectories_its_controller_can_run() {
     let mut pin_cases = Vec::new();
     for case in cases() {
         let name = case.arm.name().to_owned();
-        let planner = Planner::new(CollisionModel::new(
-            case.arm.clone().with_base(ur5::default_base()),
-        ));
+        let planner = Planner::new(CollisionModel::new(case.arm.clone().with_base(PAPER_BASE)));
         let mut planned = 0;
         let mut outcomes = Vec::new();
         for seed in 1..=6 {
-            let (tree, targets) = crate::planner::episode(12, seed);
+            let (tree, targets) = crate::common::episode(12, seed);
             let mut q = Query::new(tree, targets);
             q.strategy = Strategy::Model;
             q.budget = Duration::from_secs(3);
@@ -265,7 +264,7 @@ fn every_arm_plans_trajectories_its_controller_can_run() {
             check_approach(&name, planner.robot(), &plan, &q);
             let json = serde_json::to_value(&e.joint_trajectory).unwrap();
             if crate::common::python_has("rosbags") {
-                crate::robot_ros::assert_ros2_round_trip(&json);
+                crate::common::assert_ros2_round_trip(&json);
             }
             let points = &e.joint_trajectory.points[e.push_start_point..=e.push_end_point];
             pin_cases.push((

@@ -14,7 +14,7 @@ use treemanip::sim::loads::PushLoads;
 use treemanip::sim::{ContactModel, Push, SimConfig, simulate};
 use treemanip::tree::{Tree, Wood};
 
-use crate::sim_physics::random_tree_and_pushes;
+use crate::common::random_tree_and_pushes;
 
 /// Root → 1 straight up 0.4 m, 1 → 2 along +x 0.3 m.
 fn elbow() -> Tree {

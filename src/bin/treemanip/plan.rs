@@ -19,7 +19,7 @@ use treemanip::infer::models::{ModelSet, ServedModel, SessionLayout};
 use treemanip::planner::{Objective, Planner, Query, Stance, Strategy};
 use treemanip::robot::collision::CollisionModel;
 use treemanip::robot::model::joint_vector::JointVector;
-use treemanip::robot::ur5;
+
 use treemanip::sim::{Push, SimConfig, simulate};
 
 use crate::args::parse_vector;
@@ -187,12 +187,13 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
     query.stance = if args.base_region {
         Stance::Region(evaluation_region())
     } else {
-        Stance::Fixed(
-            args.base
-                .map_or_else(ur5::default_base, |b| Isometry3::translation(b.x, b.y, b.z)),
-        )
+        Stance::Fixed(args.base.map_or_else(
+            || arm.default_base(),
+            |b| Isometry3::translation(b.x, b.y, b.z),
+        ))
     };
-    let planner = Planner::new(CollisionModel::new(arm.with_base(ur5::default_base())));
+    let base = arm.default_base();
+    let planner = Planner::new(CollisionModel::new(arm.with_base(base)));
     let plan = planner
         .plan(&query, policy, Some(forward))
         .context("cannot plan")?;
@@ -325,7 +326,8 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
             "numerical"
         }
     );
-    let planner = Planner::new(CollisionModel::new(arm.with_base(ur5::default_base())));
+    let base = arm.default_base();
+    let planner = Planner::new(CollisionModel::new(arm.with_base(base)));
     let mut rows = Vec::new();
     let mut per_setting: Vec<(String, Vec<EpisodeResult>)> = Vec::new();
     let settings: Vec<Setting> = Setting::all()

@@ -30,9 +30,9 @@ pub mod checkpoint;
 pub mod data;
 mod device;
 pub mod finetune;
+mod loss;
 mod memory;
 pub mod modules;
-mod objective;
 pub mod step;
 
 pub use self::device::{EdgeLayout, device_input};
@@ -54,8 +54,8 @@ pub use self::checkpoint::{
     Normalisation, STATE_FILE, TrainState, current_weights, read_best, read_state,
 };
 use self::data::{Examples, Targets};
+use self::loss::validate;
 use self::modules::{DeviceInput, Outputs, TrainGnn, TrainPointNet, values};
-use self::objective::validate;
 use super::gnn::{Connectivity, EdgeAttributes, GnnConfig};
 use super::model::{Arch, ModelWeights};
 use crate::graph::{Batch, Task};

@@ -19,8 +19,8 @@ use burn::tensor::Device;
 use rayon::prelude::*;
 
 use super::data::Targets;
+use super::loss::{loss, loss_denominator};
 use super::modules::{TrainGnn, TrainPointNet};
-use super::objective::{loss, loss_denominator};
 use super::{EdgeLayout, Net, device_input};
 use crate::graph::Batch;
 use crate::nn::model::{Arch, ModelWeights};

@@ -10,10 +10,10 @@ use crate::identify::{IdentifyConfig, Probe};
 use crate::planner::base::BaseRegion;
 use crate::planner::objective::{Limits, Objective};
 use crate::planner::search::SearchOptions;
+use crate::robot::arm::PAPER_BASE;
 use crate::robot::collision::Obstacle;
 use crate::robot::motion::execution::ExecutionOptions;
 use crate::robot::motion::rrt::Config;
-use crate::robot::ur5;
 use crate::tree::Tree;
 
 /// Nodes searched by default.
@@ -87,7 +87,7 @@ impl Query {
         Self {
             objective,
             limits: Some(Limits::default()),
-            stance: Stance::Fixed(ur5::default_base()),
+            stance: Stance::Fixed(PAPER_BASE),
             start: None,
             obstacles: Vec::new(),
             strategy: Strategy::Model,

@@ -18,22 +18,21 @@
 use std::collections::HashMap;
 
 use nalgebra::{Isometry3, Point3, Unit, UnitQuaternion, Vector3};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
-use crate::robot::kinematics::numeric_ik::{IkOptions, solve};
 use crate::robot::kinematics::ur_kinematics::UrKinematics;
 use crate::robot::model::description::RobotDescription;
 use crate::robot::model::joint_vector::{JointVector, MAX_DOF};
 use crate::robot::model::link_geometry::LinkShape;
 use crate::robot::model::tool::{GRIPPER_BOXES, GRIPPER_LINK, TOOL_LINK, TOOL_OFFSET};
-use crate::robot::model::urdf_chain::random_configuration;
 use crate::robot::model::urdf_chain::{Chain, JointKind};
 
+pub mod base;
+mod inverse;
 mod reach;
 mod self_motion;
 mod stance;
 pub mod tool_line;
+pub use base::{BaseStance, PAPER_BASE};
 pub use stance::{PROBE_PUSHES, UR5_REACH};
 
 /// World poses of the links, in the arm's link order: on the stack for
@@ -47,22 +46,6 @@ pub type LinkPoses = smallvec::SmallVec<[Isometry3<f64>; 24]>;
 const IK_STARTS: usize = 10;
 /// Two solutions closer than this in every joint are one (rad or m).
 const SAME_SOLUTION: f64 = 0.05;
-
-/// Where a mobile base stands for a push, relative to the grip point:
-/// the horizontal distance from the base to the grip point, and the grip
-/// point's height above the base (m). Scored per arm by [`Arm::stances`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BaseStance {
-    pub stand_off: f64,
-    pub height: f64,
-}
-
-/// The paper's mount: `base_link` at (−0.5, 0, 0.1) m from the tree root,
-/// identity orientation.
-pub const PAPER_BASE: Isometry3<f64> = Isometry3::from_parts(
-    nalgebra::Translation3::new(-0.5, 0.0, 0.1),
-    UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(1.0, 0.0, 0.0, 0.0)),
-);
 
 /// A joint variable: its limits (rad or m; per second, per second²).
 #[derive(Debug, Clone, PartialEq)]
@@ -543,79 +526,6 @@ impl Arm {
     /// The tool frame in the tip's frame.
     pub fn tool_in_tip(&self) -> Isometry3<f64> {
         self.links[self.tool].origin
-    }
-
-    /// The tip pose (chain base frame) that puts the tool at `tool` (world).
-    fn tip_goal(&self, tool: &Isometry3<f64>) -> Isometry3<f64> {
-        self.base.inverse() * tool * self.tool_in_tip().inverse()
-    }
-
-    /// Every joint configuration found that puts the tool at `tool` (world
-    /// frame), within the joint limits, nearest `reference` first (largest
-    /// joint difference). The closed form gives every solution; a
-    /// numerical chain the one reached from `reference` and those reached
-    /// from [`IK_STARTS`] fixed random starts.
-    pub fn inverse_kinematics(
-        &self,
-        tool: &Isometry3<f64>,
-        reference: &JointVector,
-    ) -> Vec<JointVector> {
-        let goal = self.tip_goal(tool);
-        let mut solutions: Vec<JointVector> = match &self.solver {
-            Solver::Ur(ur) => {
-                let reference: [f64; 6] = std::array::from_fn(|i| reference[i]);
-                ur.solve(&goal, &reference)
-                    .iter()
-                    .map(|q| JointVector::from_slice(q))
-                    .collect()
-            }
-            Solver::Numeric if !self.within_reach(&goal) => Vec::new(),
-            Solver::Numeric => {
-                let mut rng = ChaCha8Rng::seed_from_u64(0x1c);
-                let mut found: Vec<JointVector> = Vec::new();
-                let starts = std::iter::once(reference.to_vec())
-                    .chain((0..IK_STARTS).map(|_| random_configuration(&self.chain, &mut rng)));
-                for start in starts {
-                    if let Some(q) = self.solve_from(&goal, &start) {
-                        if found.iter().all(|f| f.max_abs_diff(&q) > SAME_SOLUTION) {
-                            found.push(q);
-                        }
-                    }
-                }
-                found
-            }
-        };
-        solutions.sort_by(|a, b| {
-            a.max_abs_diff(reference)
-                .total_cmp(&b.max_abs_diff(reference))
-        });
-        solutions
-    }
-
-    /// The configuration nearest `reference` that puts the tool at `tool`,
-    /// for following a path: the nearest closed-form solution, or the
-    /// numerical solver started at `reference` alone.
-    pub fn inverse_kinematics_near(
-        &self,
-        tool: &Isometry3<f64>,
-        reference: &JointVector,
-    ) -> Option<JointVector> {
-        match &self.solver {
-            Solver::Ur(_) => self.inverse_kinematics(tool, reference).first().copied(),
-            Solver::Numeric => self.solve_from(&self.tip_goal(tool), reference),
-        }
-    }
-
-    fn solve_from(&self, goal: &Isometry3<f64>, start: &[f64]) -> Option<JointVector> {
-        // Tight: pushes follow a straight line at constant orientation
-        // through these solutions (a few more iterations near convergence).
-        let options = IkOptions {
-            restarts: 1,
-            position_tolerance: 1e-7,
-            orientation_tolerance: 1e-6,
-            ..IkOptions::default()
-        };
-        solve(&self.chain, goal, start, &options).map(|q| JointVector::from_slice(&q))
     }
 }
 

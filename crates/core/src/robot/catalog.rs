@@ -168,13 +168,13 @@ pub fn load(spec: &RobotSpec, packages: &[PathBuf]) -> Result<Arm, DescriptionEr
 const HOME_SAMPLES: usize = 500;
 
 /// A collision-free home for `arm` at the default mount (10 cm above the
-/// ground, [`crate::robot::ur5::default_base`]; its links clear of the ground and
+/// ground, [`Arm::default_base`]; its links clear of the ground and
 /// each other): its own home, else zero
 /// clamped into the limits, else the middle of the limits, else the free
 /// random configuration nearest the middle.
 pub fn free_home(arm: &Arm) -> Option<JointVector> {
     use rand::SeedableRng;
-    let model = CollisionModel::new(arm.clone().with_base(crate::robot::ur5::default_base()));
+    let model = CollisionModel::new(arm.clone().with_base(arm.default_base()));
     let empty = TreeObstacles::empty();
     let free = |q: &JointVector| model.check(q, &empty, &Allowed::default()).is_none();
     let limits = arm.limits();

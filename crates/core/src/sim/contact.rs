@@ -17,7 +17,7 @@
 use nalgebra::{DMatrix, DVector, Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::chain::{ChainPose, PathChain};
+use super::path_joints::{ChainPose, PathChain};
 use crate::tree::Tree;
 
 /// Where the slot holds the branch: this far back from the contacted node

@@ -11,20 +11,20 @@
 //!
 //! Only joints on the root → contact path can carry load; the rest keep
 //! their rest angles, and the subtree beyond the contacted node moves as a
-//! rigid body. See [`chain`] for the kinematics and [`solver`] for the SQP.
+//! rigid body. See [`path_joints`] for the kinematics and [`solver`] for the SQP.
 
-pub mod chain;
 pub mod contact;
 pub mod loads;
+pub mod path_joints;
 pub mod sampling;
 pub mod solver;
 
 use nalgebra::{DMatrix, DVector, Point3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 
-use chain::PathChain;
 use contact::Contact;
 pub use contact::{ContactModel, GRIP_OFFSET, Hold};
+use path_joints::PathChain;
 use solver::{SolveError, SolverOptions};
 
 use crate::tree::Tree;

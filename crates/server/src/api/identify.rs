@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 use treemanip_core::identify::probes::{ProbeRequest, choose_probes};
 use treemanip_core::identify::{Noise, Posterior, Prior, identify as run_identify};
+use treemanip_core::planner::Stance;
 use treemanip_core::sim::{ContactModel, MAX_PUSH_LENGTH};
 
 use super::AppState;
@@ -142,7 +143,9 @@ pub async fn propose(
                 .as_deref()
                 .map(|q| super::validate::joints(q, "robot.start", planner.robot()))
                 .transpose()?;
-            Some((super::plan::stance(robot)?, start))
+            let stance = super::plan::stance(robot)?
+                .unwrap_or_else(|| Stance::Fixed(planner.robot().default_base()));
+            Some((stance, start))
         }
     };
     let response = state

@@ -23,7 +23,6 @@ use treemanip_core::planner::{self, Attempt, Predictor, Query, Stance, Strategy}
 use treemanip_core::robot::collision::Obstacle;
 use treemanip_core::robot::motion::execution::ExecutionOptions;
 use treemanip_core::robot::motion::trajectory::TimedPoint;
-use treemanip_core::robot::ur5;
 
 /// Obstacles a request may list.
 pub const MAX_OBSTACLES: usize = 64;
@@ -207,7 +206,9 @@ fn base_rpy(robot: &RobotJson) -> Result<[f64; 3], ApiError> {
     }
 }
 
-pub(crate) fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
+/// Where the arm stands: a fixed base, a base region, or `None` for the
+/// robot's own default base ([`treemanip_core::robot::Arm::default_base`]).
+pub(crate) fn stance(robot: &RobotJson) -> Result<Option<Stance>, ApiError> {
     match (&robot.base, &robot.base_region) {
         (Some(_), Some(_)) => Err(invalid(
             "robot.base_region",
@@ -216,7 +217,7 @@ pub(crate) fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
         (Some(b), None) => {
             let p = near_point(b, "robot.base")?;
             let [roll, pitch, yaw] = base_rpy(robot)?;
-            Ok(Stance::Fixed(
+            Ok(Some(Stance::Fixed(
                 BasePose {
                     position: [p.x, p.y, p.z],
                     yaw,
@@ -224,13 +225,13 @@ pub(crate) fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
                     pitch,
                 }
                 .isometry(),
-            ))
+            )))
         }
         (None, None) if robot.base_rpy.is_some() => Err(invalid(
             "robot.base_rpy",
             "`robot.base_rpy` orients a fixed base: give `robot.base` with it",
         )),
-        (None, None) => Ok(Stance::Fixed(ur5::default_base())),
+        (None, None) => Ok(None),
         (None, Some(_)) if robot.base_rpy.is_some() => Err(invalid(
             "robot.base_rpy",
             "`robot.base_rpy` orients a fixed base; a base region chooses its own heading (`robot.base_region.yaw`)",
@@ -258,7 +259,7 @@ pub(crate) fn stance(robot: &RobotJson) -> Result<Stance, ApiError> {
                     }
                 },
             };
-            Ok(Stance::Region(BaseRegion { min, max, yaw }))
+            Ok(Some(Stance::Region(BaseRegion { min, max, yaw })))
         }
     }
 }
@@ -389,10 +390,11 @@ pub async fn plan(
     }
     let mut query = Query::with_objective(tree, objective);
     query.limits = Some(load_limits);
-    query.stance = stance(&request.robot)?;
+    let stance = stance(&request.robot)?;
     let planner = state
         .robots
         .get(request.robot.name.as_deref(), "robot.name")?;
+    query.stance = stance.unwrap_or_else(|| Stance::Fixed(planner.robot().default_base()));
     query.start = request
         .robot
         .start

@@ -17,7 +17,7 @@ use super::json::ApiJson;
 use super::tree_json::{TreeJson, tree_error};
 use treemanip_core::planner::base::BasePose;
 use treemanip_core::robot::model::link_geometry::LinkShape;
-use treemanip_core::robot::ur5;
+
 use treemanip_core::tree::sca::{self, MIN_GENERATED_NODES, ScaError, ScaParams};
 use treemanip_core::tree::urdf::{UrdfError, from_urdf_str};
 
@@ -213,7 +213,7 @@ pub async fn link_poses(
     ApiJson(request): ApiJson<LinkPosesRequest>,
 ) -> Result<axum::Json<LinkPosesResponse>, ApiError> {
     let base = match &request.base {
-        None => BasePose::of(&ur5::default_base()),
+        None => None,
         Some(b) => {
             let p: Point3<f64> = super::validate::near_point(&b.position, "base.position")?;
             for (name, v) in [("yaw", b.yaw), ("roll", b.roll), ("pitch", b.pitch)] {
@@ -224,12 +224,12 @@ pub async fn link_poses(
                     .with_details(json!({"field": format!("base.{name}")})));
                 }
             }
-            BasePose {
+            Some(BasePose {
                 position: [p.x, p.y, p.z],
                 yaw: b.yaw,
                 roll: b.roll,
                 pitch: b.pitch,
-            }
+            })
         }
     };
     let n = request.configurations.len();
@@ -240,6 +240,7 @@ pub async fn link_poses(
         .with_details(json!({"field": "configurations", "max": MAX_CONFIGURATIONS})));
     }
     let planner = state.robots.get(request.robot.as_deref(), "robot")?;
+    let base = base.unwrap_or_else(|| BasePose::of(&planner.robot().default_base()));
     let configurations = request
         .configurations
         .iter()

@@ -22,8 +22,9 @@
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
+use crate::robot::arm::Arm;
+use crate::robot::arm::base::BaseStance;
 use crate::robot::arm::tool_line::{APPROACH_OFFSET, push_line};
-use crate::robot::arm::{Arm, BaseStance};
 use crate::robot::model::joint_vector::JointVector;
 
 /// The built-in UR5's [`Arm::reach`] (m): the distances below are for it,

@@ -63,12 +63,6 @@ pub const HOME: JointVector = JointVector::new([
     0.0,
 ]);
 
-/// The paper's mount: `base_link` at (−0.5, 0, 0.1) m from the tree root,
-/// identity orientation.
-pub fn default_base() -> Isometry3<f64> {
-    crate::robot::arm::PAPER_BASE
-}
-
 /// A capsule around (part of) a link, in the link's frame (m).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CapsuleSpec {
@@ -225,6 +219,6 @@ impl Arm {
 impl Default for Arm {
     /// The built-in UR5 at the paper's mount.
     fn default() -> Self {
-        Self::ur5(default_base())
+        Self::ur5(crate::robot::arm::PAPER_BASE)
     }
 }

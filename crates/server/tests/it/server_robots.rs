@@ -1,0 +1,150 @@
+//! Several arms in one server: `--robot NAME=PATH` (imported descriptions
+//! here), `GET /v1/robots`, `robot.name` in `/v1/plan` and `robot` in
+//! `/v1/robot/link-poses`, joint vectors of each arm's own length, and a
+//! broken robot file that stops start-up naming it unless skipped.
+
+use std::process::Command;
+
+use serde_json::{Value, json};
+use treemanip_server::api::tree_json::TreeJson;
+
+use crate::common::server::Server;
+
+/// A plan request on a random tree and a target made by a random push.
+fn plan_body(robot: Value) -> Value {
+    let (tree, targets) = crate::common::episode(12, 2);
+    json!({
+        "tree": serde_json::to_value(TreeJson::from_tree(&tree)).unwrap(),
+        "target_positions": targets.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+        "strategy": "paper",
+        "budget_ms": 3000,
+        "robot": robot,
+    })
+}
+
+#[test]
+fn the_server_plans_for_the_arm_each_request_names() {
+    let server = Server::start(&[
+        "--robot",
+        "panda=robots/panda.toml",
+        "--robot",
+        "iiwa=robots/iiwa.toml",
+    ]);
+    let (status, answer) = server.get("/v1/robots");
+    assert_eq!(status, 200, "{answer}");
+    let robots = answer["robots"].as_array().unwrap();
+    let names: Vec<&str> = robots.iter().map(|r| r["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["ur5", "panda", "iiwa"]);
+    let panda = &robots[1];
+    assert_eq!(panda["default"], true, "the first --robot is the default");
+    assert_eq!(panda["dof"], 7);
+    assert_eq!(panda["joint_names"].as_array().unwrap().len(), 7);
+    assert_eq!(panda["limits"][3]["name"], "panda_joint4");
+    assert_eq!(panda["limits"][3]["acceleration"], 12.5);
+    assert_eq!(panda["base_link"], "panda_link0");
+    assert_eq!(panda["tool_link"], "panda_hand");
+    assert!((panda["tool_frame"]["xyz"][2].as_f64().unwrap() - 0.18).abs() < 1e-9);
+    assert_eq!(robots[0]["closed_form_ik"], true);
+    assert_eq!(panda["closed_form_ik"], false);
+
+    // The default (panda) and a named one (ur5), each with its own joints.
+    for (robot, dof) in [
+        (
+            json!({ "base_region": { "min": [-1.0, -0.5, 0.1], "max": [0.0, 0.5, 1.0] } }),
+            7,
+        ),
+        (
+            json!({ "name": "ur5", "base_region": { "min": [-1.0, -0.5, 0.1], "max": [0.0, 0.5, 1.0] } }),
+            6,
+        ),
+    ] {
+        let (status, answer) = server.json("POST", "/v1/plan", &plan_body(robot));
+        assert_eq!(status, 200, "{answer}");
+        assert_eq!(answer["joint_names"].as_array().unwrap().len(), dof);
+        assert_eq!(answer["start"].as_array().unwrap().len(), dof);
+        assert_eq!(answer["status"], "planned", "{answer}");
+        if answer["status"] == "planned" {
+            let jt = &answer["joint_trajectory"];
+            assert_eq!(jt["joint_names"].as_array().unwrap().len(), dof);
+            assert!(
+                jt["points"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .all(|p| p["positions"].as_array().unwrap().len() == dof)
+            );
+            // The viewer's call: the plan's own robot draws it.
+            let q: Vec<Value> = answer["trajectory"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|p| p["q"].clone())
+                .collect();
+            let (status, poses) = server.json(
+                "POST",
+                "/v1/robot/link-poses",
+                &json!({ "robot": answer["robot"], "base": answer["base"], "configurations": q }),
+            );
+            assert_eq!(status, 200, "{poses}");
+            assert_eq!(poses["joint_names"].as_array().unwrap().len(), dof);
+        }
+    }
+    // Unknown robots and joint vectors of the wrong length are 422s that
+    // say what is wrong.
+    let (status, answer) = server.json("POST", "/v1/plan", &plan_body(json!({ "name": "abb" })));
+    assert_eq!(status, 422, "{answer}");
+    assert_eq!(answer["error"]["details"]["field"], "robot.name");
+    assert!(
+        answer["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("ur5, panda, iiwa")
+    );
+    let (status, answer) = server.json(
+        "POST",
+        "/v1/plan",
+        &plan_body(json!({ "name": "panda", "start": [0, 0, 0, 0, 0, 0] })),
+    );
+    assert_eq!(status, 422, "{answer}");
+    assert!(
+        answer["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("7 joint values"),
+        "{answer}"
+    );
+    let (status, answer) = server.json(
+        "POST",
+        "/v1/plan",
+        &plan_body(json!({ "name": "panda", "start": [0, 0, 0, 0, 0, 0, 0] })),
+    );
+    assert_eq!(status, 422, "{answer}");
+    assert!(
+        answer["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("panda_joint4"),
+        "{answer}"
+    );
+}
+
+#[test]
+fn a_broken_robot_stops_start_up_naming_it_unless_skipped() {
+    let dir = crate::common::temp_dir("broken-robot");
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "name = \"bad\"\ndof = 6\n").unwrap();
+    let spec = format!("bad={}", bad.display());
+    let out = Command::new(crate::common::server::server_exe())
+        .current_dir(crate::common::server::workspace_root())
+        .args(["--bind", "127.0.0.1:0", "--robot", &spec])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("bad.toml"), "{stderr}");
+    assert!(stderr.contains("--skip-broken-robots"), "{stderr}");
+    let server = Server::start(&["--robot", &spec, "--skip-broken-robots"]);
+    let (status, answer) = server.get("/v1/robots");
+    assert_eq!(status, 200);
+    assert_eq!(answer["robots"].as_array().unwrap().len(), 1, "{answer}");
+}

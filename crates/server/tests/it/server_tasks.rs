@@ -1,0 +1,240 @@
+//! `/v1/plan` with orchard objectives and load limits over HTTP, on the
+//! committed models: a `clear` plan checked by simulating its push, the
+//! loads and limits reported, `target_positions` still a shorthand, and
+//! every bad objective answered with a 4xx naming its field.
+
+use serde_json::{Value, json};
+use treemanip_core::planner::objective::SATISFIED;
+use treemanip_core::planner::{Objective, Region};
+use treemanip_core::sim::loads::PushLoads;
+use treemanip_core::sim::{Push, SimConfig, simulate};
+use treemanip_core::tree::{ScaParams, Tree, generate};
+use treemanip_server::api::tree_json::TreeJson;
+
+use crate::common::server::Server;
+
+const MODELS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../models");
+
+fn p(v: &nalgebra::Point3<f64>) -> Value {
+    json!([v.x, v.y, v.z])
+}
+
+/// A 15-node tree and a 4 cm fruit across the middle of its deepest leaf's
+/// branch (the kind of task `eval tasks` poses).
+fn task() -> (Tree, nalgebra::Point3<f64>) {
+    let tree = generate(15, 4, &ScaParams::default()).unwrap();
+    let leaf = (1..tree.len())
+        .filter(|&j| tree.is_leaf(j))
+        .max_by_key(|&j| tree.depth(j))
+        .unwrap();
+    let parent = tree.parent(leaf).unwrap();
+    let centre = nalgebra::center(&tree.position(parent), &tree.position(leaf))
+        + nalgebra::Vector3::new(0.0, 0.0, 0.01);
+    (tree, centre)
+}
+
+#[test]
+fn plan_clears_a_fruit_and_reports_loads() {
+    let server = Server::start(&["--models-dir", MODELS]);
+    let (tree, centre) = task();
+    let tree_json = serde_json::to_value(TreeJson::from_tree(&tree)).unwrap();
+    let region = json!({ "kind": "sphere", "centre": p(&centre), "radius": 0.04 });
+    let objective = Objective::Clear {
+        regions: vec![Region::Sphere {
+            centre,
+            radius: 0.04,
+        }],
+        margin: 0.01,
+    };
+    let no_action = objective.residual(&tree, tree.positions());
+    assert!(no_action > 0.0);
+    let base_region = json!({ "min": [-1.0, -0.5, 0.1], "max": [0.0, 0.5, 1.0] });
+    for strategy in ["physics", "model"] {
+        let body = json!({
+            "tree": tree_json,
+            "objective": { "kind": "clear", "regions": [region] },
+            "limits": { "max_stress": 40e6 },
+            "strategy": strategy,
+            "robot": { "base_region": base_region },
+        });
+        let (status, plan) = server.json("POST", "/v1/plan", &body);
+        assert_eq!(status, 200, "{plan}");
+        assert_eq!(plan["objective"], "clear");
+        assert!((plan["no_action_error"].as_f64().unwrap() - no_action).abs() < 1e-9);
+        assert_eq!(plan["limits"]["max_stress"], 40e6);
+        assert_eq!(plan["limits"]["max_contact_force"], 50.0, "the default");
+        for a in plan["attempts"].as_array().unwrap() {
+            if a["outcome"] == "over_limit" {
+                let loads = if a["simulated_loads"].is_null() {
+                    &a["predicted_loads"]
+                } else {
+                    &a["simulated_loads"]
+                };
+                let over = loads["peak_stress"].as_f64().unwrap() > 40e6
+                    || loads["contact_force"].as_f64().unwrap() > 50.0;
+                assert!(over, "{a}");
+            }
+        }
+        if plan["status"] != "planned" {
+            // The simulator predicts exactly: this fruit can be cleared.
+            assert_ne!(strategy, "physics", "{plan}");
+            continue;
+        }
+        let v = &plan["push"];
+        let push = Push {
+            node: plan["node"].as_u64().unwrap() as usize,
+            vector: nalgebra::Vector3::new(
+                v[0].as_f64().unwrap(),
+                v[1].as_f64().unwrap(),
+                v[2].as_f64().unwrap(),
+            ),
+        };
+        let out = simulate(&tree, &push, &SimConfig::default()).unwrap();
+        let loads = PushLoads::of_outcome(&tree, &out);
+        let simulated = &plan["simulated_loads"];
+        assert!((simulated["peak_stress"].as_f64().unwrap() - loads.peak_stress).abs() < 1.0);
+        assert!(loads.peak_stress <= 40e6 && loads.contact_force <= 50.0);
+        let margin = simulated["margin"]["stress"].as_f64().unwrap();
+        assert!((margin - (1.0 - loads.peak_stress / 40e6)).abs() < 1e-9);
+        assert!(plan["predicted_loads"]["peak_stress"].as_f64().unwrap() > 0.0);
+        let executed = objective.residual(&tree, &out.final_positions);
+        let clearance = plan["clearance"]["simulated"].as_f64().unwrap();
+        let reached = objective
+            .scorer()
+            .clearance(&tree, &out.final_positions)
+            .unwrap();
+        assert!(
+            (clearance - reached).abs() < 1e-9,
+            "{clearance} vs {reached}"
+        );
+        assert!(
+            executed <= SATISFIED || executed < no_action,
+            "{strategy}: {executed}"
+        );
+    }
+    // `paper` plans shapes only.
+    let body = json!({
+        "tree": tree_json,
+        "objective": { "kind": "clear", "regions": [region] },
+        "strategy": "paper",
+    });
+    let (status, e) = server.json("POST", "/v1/plan", &body);
+    assert_eq!(
+        (status, e["error"]["details"]["field"].as_str()),
+        (422, Some("strategy")),
+        "{e}"
+    );
+    // The shorthand and the shape objective plan the same.
+    let targets: Vec<Value> = tree.positions().iter().map(p).collect();
+    let mut moved = targets.clone();
+    moved[3][0] = json!(moved[3][0].as_f64().unwrap() + 0.05);
+    let short = json!({ "tree": tree_json, "target_positions": moved, "strategy": "physics" });
+    let long = json!({
+        "tree": tree_json,
+        "objective": { "kind": "shape", "target_positions": moved },
+        "strategy": "physics",
+    });
+    let (s1, a) = server.json("POST", "/v1/plan", &short);
+    let (s2, b) = server.json("POST", "/v1/plan", &long);
+    assert_eq!((s1, s2), (200, 200), "{a} {b}");
+    assert_eq!(
+        (a["node"].clone(), a["push"].clone()),
+        (b["node"].clone(), b["push"].clone())
+    );
+    assert_eq!(a["objective"], "shape");
+}
+
+/// Each bad objective or limit gets a 4xx JSON error naming its field, and
+/// the server goes on answering.
+#[test]
+fn bad_objectives_are_named() {
+    let server = Server::start(&["--models-dir", MODELS]);
+    let (tree, centre) = task();
+    let n = tree.len();
+    let tree_json = serde_json::to_value(TreeJson::from_tree(&tree)).unwrap();
+    let targets: Vec<Value> = tree.positions().iter().map(p).collect();
+    let sphere = json!({ "kind": "sphere", "centre": p(&centre), "radius": 0.04 });
+    let plan = |extra: Value| {
+        let mut body = json!({ "tree": tree_json, "strategy": "physics" });
+        for (k, v) in extra.as_object().unwrap() {
+            body[k] = v.clone();
+        }
+        body
+    };
+    let mut zero_weights = vec![0.0; n];
+    zero_weights[0] = 1.0;
+    let cases = [
+        (json!({}), "objective"),
+        (
+            json!({ "target_positions": targets, "objective": { "kind": "clear", "regions": [sphere] } }),
+            "objective",
+        ),
+        (
+            json!({ "objective": { "kind": "clear", "regions": [] } }),
+            "objective.regions",
+        ),
+        (
+            json!({ "objective": { "kind": "clear", "regions": [{ "kind": "sphere", "centre": [0, 0, 0.5], "radius": -0.1 }] } }),
+            "objective.regions[0].radius",
+        ),
+        (
+            json!({ "objective": { "kind": "clear", "regions": [{ "kind": "sphere", "centre": [100, 0, 0.5], "radius": 0.1 }] } }),
+            "objective.regions[0].centre",
+        ),
+        (
+            json!({ "objective": { "kind": "clear", "regions": [{ "kind": "box", "centre": [0, 0, 0.5], "half_extents": [0.1, 0, 0.1] }] } }),
+            "objective.regions[0].half_extents",
+        ),
+        (
+            json!({ "objective": { "kind": "clear", "regions": [sphere], "margin": -0.01 } }),
+            "objective.margin",
+        ),
+        (
+            json!({ "objective": { "kind": "shape", "target_positions": targets, "weights": zero_weights } }),
+            "objective.weights",
+        ),
+        (
+            json!({ "objective": { "kind": "shape", "target_positions": targets, "weights": [1.0] } }),
+            "objective.weights",
+        ),
+        (
+            json!({ "objective": { "kind": "reach", "node": 0, "region": sphere } }),
+            "objective.node",
+        ),
+        (
+            json!({ "objective": { "kind": "reach", "node": n, "region": sphere } }),
+            "objective.node",
+        ),
+        (
+            json!({ "target_positions": targets, "limits": { "max_stress": 0.0 } }),
+            "limits.max_stress",
+        ),
+        (
+            json!({ "target_positions": targets, "limits": { "max_contact_force": -5.0 } }),
+            "limits.max_contact_force",
+        ),
+    ];
+    for (extra, field) in cases {
+        let body = plan(extra);
+        let (status, e) = server.json("POST", "/v1/plan", &body);
+        assert!((400..500).contains(&status), "{body}: {status} {e}");
+        assert_eq!(
+            e["error"]["details"]["field"].as_str(),
+            Some(field),
+            "{body}: {e}"
+        );
+    }
+    // NaN cannot be written in JSON; a string where a number belongs is a
+    // malformed body, also a 4xx.
+    let body = plan(
+        json!({ "objective": { "kind": "clear", "regions": [{ "kind": "sphere", "centre": [0, 0, "x"], "radius": 0.1 }] } }),
+    );
+    let (status, _) = server.json("POST", "/v1/plan", &body);
+    assert!((400..500).contains(&status));
+    let (status, _) = server.json(
+        "POST",
+        "/v1/plan",
+        &plan(json!({ "target_positions": targets })),
+    );
+    assert_eq!(status, 200);
+}
