@@ -3,6 +3,7 @@
 //! neither trains a model nor runs one.
 //!
 //! Layers, each using only those listed before it:
+//! - [`seed`]: deriving seeds;
 //! - [`tree`]: the tree (nodes, branches, wood), Space Colonization, URDF;
 //! - [`sim`]: the quasi-static push simulator;
 //! - [`identify`]: branch stiffness from probe pushes, with the simulator as
@@ -10,7 +11,9 @@
 //! - [`graph`]: the graph encoding and the models' I/O contract;
 //!   [`model`]: what a model is trained for (its domain);
 //! - [`dataset`]: push episodes collected with the simulator, `.npz` files;
-//! - [`robot`]: the UR5 and its ⊔ gripper, kinematics, collision, RRT*;
+//! - [`geometry`]: shapes placed in the world and their queries;
+//! - [`robot`]: any arm from its URDF, in layers (model, kinematics, arm,
+//!   collision, motion, catalog);
 //! - [`planner`]: the paper's Algorithm 1, with the contact policy and the
 //!   forward model behind small traits ([`planner::ContactPolicy`],
 //!   [`planner::Predictor`]) that `treemanip-infer` implements.

@@ -35,6 +35,8 @@
 //! units. Graphs of different sizes are batched densely, padded to the
 //! largest N with a node mask; padded nodes and self-edges carry zeros and
 //! are excluded from sums by the mask.
+//!
+//! The documentation beside the code: `docs/learning.md`.
 
 pub mod contract;
 pub mod stats;

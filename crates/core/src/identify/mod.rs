@@ -24,6 +24,8 @@
 //! current solution, so a column costs a few Newton steps). The posterior
 //! covariance is the Laplace approximation (JᵀJ + Σ⁻¹)⁻¹ at the optimum;
 //! intervals are its 90 % bands.
+//!
+//! The documentation beside the code: `docs/identify.md`.
 
 mod fit;
 pub mod probes;

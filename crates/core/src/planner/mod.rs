@@ -16,6 +16,9 @@
 //!    tree (whose simulated loads are checked against the limits again),
 //!    then RRT* for the approach, falling back to the next best;
 //! 4. with a base region the arm may stand anywhere in it ([`base`]).
+//!
+//! The documentation beside the code: `docs/tasks.md` (objectives, limits)
+//! and `docs/robot.md` (the planner).
 
 pub mod answer;
 pub mod base;

@@ -21,6 +21,8 @@
 //!    trajectory timing (TOPP-RA, jerk limits) and ROS 2 messages.
 //! 6. [`ur5`] (the built-in UR5 and its description) and [`catalog`]
 //!    (arms by name: the built-in one, shipped descriptions, URDFs).
+//!
+//! How each part works and what it measures: `docs/robot.md`.
 
 pub mod arm;
 pub mod catalog;

@@ -12,6 +12,8 @@
 //! Only joints on the root → contact path can carry load; the rest keep
 //! their rest angles, and the subtree beyond the contacted node moves as a
 //! rigid body. See [`path_joints`] for the kinematics and [`solver`] for the SQP.
+//!
+//! The documentation beside the code: `docs/simulation.md`.
 
 pub mod contact;
 pub mod loads;

@@ -1,6 +1,8 @@
 //! Trees: the validated model, the Space Colonization generator, the URDF
 //! format and an SVG drawing. Everything else in treemanip depends on this
 //! module and it depends on nothing else in the crate.
+//!
+//! The documentation beside the code: `docs/trees.md`.
 
 pub mod collection;
 pub mod model;

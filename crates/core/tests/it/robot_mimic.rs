@@ -8,12 +8,12 @@
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use treemanip_core::robot::Arm;
 use treemanip_core::robot::arm::PAPER_BASE;
 use treemanip_core::robot::catalog::{self, RobotSpec};
 use treemanip_core::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use treemanip_core::robot::motion::rrt::{Config, MotionValidator};
 use treemanip_core::robot::motion::scene::PlanningScene;
-use treemanip_core::robot::Arm;
 
 const URDF: &str = r#"<robot name="parallelogram">
   <link name="base"><collision><origin xyz="0 0 0.05"/><geometry><cylinder radius="0.06" length="0.1"/></geometry></collision></link>

@@ -20,7 +20,7 @@ fn committed_urdf_is_the_generated_one() {
     }
     assert!(
         ur5::URDF == generated,
-        "assets/ur5_gripper.urdf is stale: run `TREEMANIP_BLESS=1 cargo test --test robot_model`"
+        "assets/ur5_gripper.urdf is stale: run `TREEMANIP_BLESS=1 cargo test -p treemanip-core --test it robot_model`"
     );
 }
 

@@ -3,11 +3,29 @@
 //! planning) runs on tokio's blocking pool behind an admission limit, so
 //! the async executor only moves bytes.
 //!
-//! Routes: `GET /healthz`, `GET /readyz`, `GET /metrics`, `GET /openapi.yaml`,
-//! `GET /v1/models`, `POST /v1/forward`, `POST /v1/policy`, `POST /v1/plan`,
-//! `POST /v1/simulate`, `POST /v1/trees/urdf`, `GET /v1/trees/example`,
-//! `POST /v1/robot/link-poses`, and the viewer page `GET /viewer`.
-//! Described in `openapi.yaml`.
+//! Routes (23, and `POST /debug/panic` and `/debug/panic-worker` with fault
+//! injection on; [`router`] is the list that serves them, `openapi.yaml`
+//! describes them):
+//! - service: `GET /healthz`, `GET /readyz`, `GET /metrics`,
+//!   `GET /openapi.yaml`, `GET /v1/models`;
+//! - models and physics: `POST /v1/forward`, `POST /v1/policy`,
+//!   `POST /v1/simulate` ([`predict`], [`simulate`]);
+//! - planning: `POST /v1/plan` ([`plan`], [`objective`]), `GET /v1/robots`
+//!   ([`robots`]), `POST /v1/robot/link-poses` ([`scene`]);
+//! - stiffness: `POST /v1/identify`, `POST /v1/identify/probes`
+//!   ([`identify`], [`observations`]);
+//! - trees: `POST /v1/trees/urdf`, `GET /v1/trees/example` ([`scene`]);
+//! - the viewer: `GET /viewer`, `GET /viewer/{file}` ([`viewer`]);
+//! - the KServe/Triton open inference protocol: `GET /v2`,
+//!   `GET /v2/health/live`, `GET /v2/health/ready`, `GET /v2/models/{name}`,
+//!   `GET /v2/models/{name}/ready`, `POST /v2/models/{name}/infer` ([`v2`]).
+//!
+//! Around them: [`state`] (shared state, admission, the blocking pool),
+//! [`error`] (the JSON error and its codes), [`json`] and [`validate`]
+//! (request parsing and checks), [`metrics`], [`request_log`], [`shutdown`]
+//! and [`drain`] (graceful shutdown), [`robot_planners`] (one planner per
+//! arm), [`server`] (the binary's flags and start-up), [`health_check`]
+//! (the container's health check).
 
 pub mod domain;
 pub mod drain;
@@ -28,7 +46,6 @@ pub mod server;
 pub mod shutdown;
 pub mod simulate;
 pub mod state;
-
 pub mod tree_json;
 pub mod v2;
 pub mod validate;
