@@ -22,7 +22,8 @@ use treemanip::dataset::Split;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
 use treemanip::eval::plan::percentile;
 use treemanip::eval::tasks::{TaskKind, make_task, task_rng};
-use treemanip::planner::{Objective, Region};
+use treemanip::geometry::shape::Shape;
+use treemanip::planner::Objective;
 
 #[allow(dead_code)] // the bench uses part of the tests' helper
 #[path = "../crates/server/tests/it/common/server.rs"]
@@ -72,7 +73,7 @@ fn main() {
             let mut rng = task_rng(7, n * 1000 + k);
             if let Some(Objective::Clear { regions, .. }) =
                 make_task(TaskKind::Clear, tree, e, &mut rng)
-                && let Some(Region::Sphere { centre, radius }) = regions.first()
+                && let Some(Shape::Sphere { centre, radius }) = regions.first()
             {
                 clear_requests.push(json!({
                     "tree": TreeJson::from_tree(tree),

@@ -12,7 +12,9 @@
 //! Units are SI everywhere: metres, radians, N·m/rad for joint stiffness,
 //! N·m·s/rad for joint damping.
 
-pub use treemanip_core::{dataset, graph, identify, model, planner, robot, seed, sim, tree};
+pub use treemanip_core::{
+    dataset, geometry, graph, identify, model, planner, robot, seed, sim, tree,
+};
 pub use treemanip_infer as infer;
 pub use treemanip_server::{api, fuzz};
 

@@ -24,12 +24,13 @@ use serde::Serialize;
 
 use super::plan::{evaluation_region, percentile};
 use crate::dataset::Episode;
+use crate::geometry::shape::Shape;
 use crate::infer::models::ServedModel;
 use crate::planner::objective::{DEFAULT_CLEAR_MARGIN, SATISFIED};
 use crate::planner::predict::PhysicsPredictor;
 use crate::planner::search::{SearchOptions, search_pushes};
 use crate::planner::seeds::geometric_seeds;
-use crate::planner::{Limits, Objective, Planner, Query, Region, Stance, Strategy};
+use crate::planner::{Limits, Objective, Planner, Query, Stance, Strategy};
 use crate::sim::loads::PushLoads;
 use crate::sim::{Push, SimConfig, simulate};
 use crate::tree::Tree;
@@ -89,7 +90,7 @@ pub fn make_task(
             let axis = (b - a).normalize();
             let centre = on_axis + perpendicular(&axis, rng) * rng.random_range(0.0..0.03);
             Some(Objective::Clear {
-                regions: vec![Region::Sphere {
+                regions: vec![Shape::Sphere {
                     centre,
                     radius: FRUIT_RADIUS,
                 }],
@@ -106,7 +107,7 @@ pub fn make_task(
             let node = moved[rng.random_range(0..moved.len())];
             Some(Objective::Reach {
                 node,
-                region: Region::Sphere {
+                region: Shape::Sphere {
                     centre: episode.final_positions[node],
                     radius: REACH_RADIUS,
                 },

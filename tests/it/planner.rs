@@ -7,12 +7,13 @@ use std::path::Path;
 use std::time::Duration;
 
 use nalgebra::{Point3, Vector3};
+use treemanip::geometry::shape::Shape;
 use treemanip::infer::models::{ModelSet, ServedModel};
 use treemanip::planner::predict::max_node_error;
 use treemanip::planner::{Plan, Planner, Query, Stance, Strategy};
 use treemanip::robot::Arm;
 use treemanip::robot::arm::tool_line::APPROACH_OFFSET;
-use treemanip::robot::collision::{Allowed, CollisionModel, Hit, Obstacle, TreeObstacles};
+use treemanip::robot::collision::{Allowed, CollisionModel, Hit, TreeObstacles};
 use treemanip::robot::kinematics::dh::JOINT_LIMITS;
 use treemanip::robot::motion::push_motion::Outcome;
 use treemanip::sim::{Push, SimConfig, simulate};
@@ -327,14 +328,13 @@ fn obstacles_are_respected_and_named() {
     let arm = CollisionModel::new(Arm::default().with_base(plan.base.isometry()));
     let post_at = |k: usize| {
         let at = arm.robot.tool_pose(&p.trajectory[k].q).translation.vector;
-        Obstacle::Capsule {
+        Shape::Capsule {
             a: Point3::new(at.x, at.y, at.z - 0.1),
             b: Point3::new(at.x, at.y, at.z + 0.1),
             radius: 0.04,
         }
     };
-    let with =
-        |post: &Obstacle| TreeObstacles::new(&tree).with_obstacles(std::slice::from_ref(post));
+    let with = |post: &Shape| TreeObstacles::new(&tree).with_obstacles(std::slice::from_ref(post));
     // Away from the start and from the pre-contact pose with a margin, so
     // that the stake blocks the way and not its ends.
     let contact = &p.trajectory[p.push_start_index].q;
@@ -365,7 +365,7 @@ fn obstacles_are_respected_and_named() {
     );
     check_plan(&around, &q);
     // A wall over the whole workspace makes the start collide, by name.
-    let wall = Obstacle::Box {
+    let wall = Shape::Box {
         centre: Point3::new(-0.5, 0.0, 0.5),
         half_extents: Vector3::new(0.3, 0.3, 0.3),
         yaw: 0.3,

@@ -3,12 +3,11 @@
 //! `clear` and `reach` pushes checked by simulating them.
 
 use nalgebra::{Point3, Vector3};
+use treemanip::geometry::shape::Shape;
 use treemanip::planner::objective::{Limits, SATISFIED};
 use treemanip::planner::predict::PhysicsPredictor;
 use treemanip::planner::seeds::geometric_seeds;
-use treemanip::planner::{
-    ContactPolicy, Objective, PlanError, Planner, Query, Region, Stance, Strategy,
-};
+use treemanip::planner::{ContactPolicy, Objective, PlanError, Planner, Query, Stance, Strategy};
 use treemanip::robot::motion::push_motion::Outcome;
 use treemanip::sim::loads::PushLoads;
 use treemanip::sim::{ContactModel, Push, SimConfig, simulate};
@@ -45,7 +44,7 @@ fn residuals_match_closed_forms() {
     // Branch 2 lies on z = 0.4 from x = 0 to 0.3, radius 5 mm. A 4 cm
     // fruit centred 3 cm above its middle: it overlaps the branch by
     // 0.04 + 0.005 − 0.03 = 1.5 cm, plus the margin.
-    let fruit = Region::Sphere {
+    let fruit = Shape::Sphere {
         centre: Point3::new(0.15, 0.0, 0.43),
         radius: 0.04,
     };
@@ -57,7 +56,7 @@ fn residuals_match_closed_forms() {
     assert!((r - 0.025).abs() < 1e-9, "intrusion {r}");
     // Far above: clear, residual exactly 0.
     let above = Objective::Clear {
-        regions: vec![Region::Sphere {
+        regions: vec![Shape::Sphere {
             centre: Point3::new(0.15, 0.0, 0.6),
             radius: 0.04,
         }],
@@ -70,7 +69,7 @@ fn residuals_match_closed_forms() {
     // spans x = 0.25…0.45 and swallows the branch's last 5 cm: the
     // shallowest way out is sideways or up, 2 cm + 5 mm.
     let boxed = |yaw: f64| Objective::Clear {
-        regions: vec![Region::Box {
+        regions: vec![Shape::Box {
             centre: Point3::new(0.35, 0.0, 0.4),
             half_extents: Vector3::new(0.1, 0.02, 0.02),
             yaw,
@@ -85,7 +84,7 @@ fn residuals_match_closed_forms() {
     // overlap by their radii, 1 cm + 5 mm (to the precision of parry's
     // penetration query).
     let sight = Objective::Clear {
-        regions: vec![Region::Capsule {
+        regions: vec![Shape::Capsule {
             a: Point3::new(0.1, -1.0, 0.4),
             b: Point3::new(0.1, 0.5, 0.4),
             radius: 0.01,
@@ -97,7 +96,7 @@ fn residuals_match_closed_forms() {
     // Reach: node 2 to a 3 cm sphere 10 cm above it: 7 cm; inside: 0.
     let reach = |z: f64| Objective::Reach {
         node: 2,
-        region: Region::Sphere {
+        region: Shape::Sphere {
             centre: Point3::new(0.3, 0.0, z),
             radius: 0.03,
         },
@@ -216,7 +215,7 @@ fn physics_clears_a_fruit_within_the_limits() {
         let parent = tree.parent(j).unwrap();
         let centre = nalgebra::center(&tree.position(parent), &tree.position(j));
         let objective = Objective::Clear {
-            regions: vec![Region::Sphere {
+            regions: vec![Shape::Sphere {
                 centre,
                 radius: 0.03,
             }],
@@ -283,7 +282,7 @@ fn the_search_brings_a_node_into_reach() {
             }
             let objective = Objective::Reach {
                 node,
-                region: Region::Sphere {
+                region: Shape::Sphere {
                     centre: out.final_positions[node],
                     radius: 0.03,
                 },

@@ -2,8 +2,10 @@
 //! the conversions into parry's types and the queries built on them.
 //!
 //! - [`convert`]: nalgebra vectors and isometries as parry's `Vec3` and
-//!   `Pose` (parry 0.31 has its own math types).
-
+//!   `Pose` (parry 0.31 has its own math types);
+//! - [`shape`]: [`shape::Shape`], the solids around a tree (an objective's
+//!   regions, obstacles): parry conversion, bounding box, signed distance;
+//! - [`segment`]: closest points of two segments (every capsule query);
 //! - [`aabb`]: axis-aligned boxes, the prefilter of every query;
 //! - [`world_shape`]: capsules, boxes and cylinders placed in the world,
 //!   whether two touch and their distance;
@@ -11,5 +13,7 @@
 
 pub mod aabb;
 pub mod convert;
+pub mod segment;
 pub mod segment_box;
+pub mod shape;
 pub mod world_shape;

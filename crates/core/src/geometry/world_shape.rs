@@ -3,11 +3,11 @@
 //! touch and how far apart they are, in closed form where one exists.
 
 use parry3d_f64::math::Pose;
-use parry3d_f64::query::details::closest_points_segment_segment_with_locations_nD;
 use parry3d_f64::query::intersection_test;
 use parry3d_f64::shape::{Capsule, Cuboid, Cylinder, Shape};
 
 use crate::geometry::aabb::Aabb;
+use crate::geometry::segment::closest_points;
 use crate::geometry::segment_box::segment_box_distance_squared;
 
 /// The arm's shapes in the world at one configuration, with their bounding
@@ -59,8 +59,8 @@ pub fn intersects(a: &WorldShape, b: &WorldShape) -> bool {
 /// configuration's checks are capsule pairs: arm links, branches, self).
 pub fn capsules_intersect(pa: &Pose, c1: &Capsule, pb: &Pose, c2: &Capsule) -> bool {
     let (s1, s2) = (c1.segment.transformed(pa), c2.segment.transformed(pb));
-    let (l1, l2) = closest_points_segment_segment_with_locations_nD((&s1.a, &s1.b), (&s2.a, &s2.b));
-    let gap = s1.point_at(&l1) - s2.point_at(&l2);
+    let (p1, p2) = closest_points(s1.a, s1.b, s2.a, s2.b);
+    let gap = p1 - p2;
     let reach = c1.radius + c2.radius;
     gap.length_squared() <= reach * reach
 }
@@ -72,9 +72,8 @@ pub fn distance(a: &WorldShape, b: &WorldShape) -> f64 {
     match (a, b) {
         (WorldShape::Capsule(c1), WorldShape::Capsule(c2)) => {
             let (s1, s2) = (&c1.segment, &c2.segment);
-            let (l1, l2) =
-                closest_points_segment_segment_with_locations_nD((&s1.a, &s1.b), (&s2.a, &s2.b));
-            let gap = (s1.point_at(&l1) - s2.point_at(&l2)).length();
+            let (p1, p2) = closest_points(s1.a, s1.b, s2.a, s2.b);
+            let gap = (p1 - p2).length();
             (gap - c1.radius - c2.radius).max(0.0)
         }
         (WorldShape::Capsule(c), WorldShape::Box(cuboid, pose))

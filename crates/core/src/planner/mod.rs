@@ -33,8 +33,9 @@ pub mod search;
 pub mod seeds;
 mod stages;
 
+pub use crate::geometry::shape::Shape;
 pub use answer::{Attempt, Clearance, Plan, PlanError};
-pub use objective::{Limits, Objective, Region};
+pub use objective::{Limits, Objective};
 pub use placed::Planner;
 pub use predict::{Candidate, ContactPolicy, PredictError, Predictor};
 pub use query::{

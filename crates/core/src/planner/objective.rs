@@ -7,172 +7,14 @@
 //! Branches are capsules: the segment parent → node with the branch's
 //! radius. Distances between branches and regions are signed (negative
 //! when they overlap): exact segment geometry for spheres and capsules,
-//! parry's contact query for boxes.
+//! parry's contact query for boxes ([`crate::geometry::shape`]).
 
 use nalgebra::{Point3, Vector3};
-use parry3d_f64::math::{Pose, Rot3, Vec3};
-use parry3d_f64::query::contact;
-use parry3d_f64::query::details::closest_points_segment_segment_with_locations_nD;
-use parry3d_f64::shape::{Ball, Capsule, Cuboid, Segment, Shape};
 use serde::{Deserialize, Serialize};
 
 use super::predict::max_node_error;
+use crate::geometry::shape::{PreparedShape, Shape};
 use crate::tree::Tree;
-
-/// A region of space: a fruit (sphere), a box, or a line of sight (a
-/// capsule from a camera point to a fruit).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum Region {
-    Sphere {
-        centre: Point3<f64>,
-        radius: f64,
-    },
-    /// A box turned by `yaw` (rad) about the vertical, as obstacle boxes.
-    Box {
-        centre: Point3<f64>,
-        half_extents: Vector3<f64>,
-        #[serde(default)]
-        yaw: f64,
-    },
-    Capsule {
-        a: Point3<f64>,
-        b: Point3<f64>,
-        radius: f64,
-    },
-}
-
-fn vec3(p: &Point3<f64>) -> Vec3 {
-    Vec3::new(p.x, p.y, p.z)
-}
-
-impl Region {
-    /// The region as a parry shape and its pose.
-    fn shape(&self) -> (Box<dyn Shape>, Pose) {
-        match self {
-            Region::Sphere { centre, radius } => (
-                Box::new(Ball::new(*radius)),
-                Pose::from_translation(vec3(centre)),
-            ),
-            Region::Box {
-                centre,
-                half_extents,
-                yaw,
-            } => (
-                Box::new(Cuboid::new(Vec3::new(
-                    half_extents.x,
-                    half_extents.y,
-                    half_extents.z,
-                ))),
-                Pose::from_parts(vec3(centre), Rot3::from_rotation_z(*yaw)),
-            ),
-            Region::Capsule { a, b, radius } => (
-                Box::new(Capsule::new(vec3(a), vec3(b), *radius)),
-                Pose::IDENTITY,
-            ),
-        }
-    }
-
-    /// A point inside the region (its centre).
-    pub fn centre(&self) -> Point3<f64> {
-        match self {
-            Region::Sphere { centre, .. } | Region::Box { centre, .. } => *centre,
-            Region::Capsule { a, b, .. } => nalgebra::center(a, b),
-        }
-    }
-}
-
-/// A region prepared for many distance queries.
-struct PreparedRegion {
-    region: Region,
-    shape: Box<dyn Shape>,
-    pose: Pose,
-}
-
-/// The closest points of segments a–b and c–d.
-fn closest_points(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> (Vec3, Vec3) {
-    let (l1, l2) = closest_points_segment_segment_with_locations_nD((&a, &b), (&c, &d));
-    (
-        Segment::new(a, b).point_at(&l1),
-        Segment::new(c, d).point_at(&l2),
-    )
-}
-
-/// A unit vector perpendicular to `axis`.
-fn any_perpendicular(axis: Vec3) -> Vec3 {
-    let helper = if axis.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
-    let p = axis.cross(helper);
-    if p.length() > 1e-12 {
-        p.normalize()
-    } else {
-        Vec3::X
-    }
-}
-
-impl PreparedRegion {
-    fn new(region: &Region) -> Self {
-        let (shape, pose) = region.shape();
-        Self {
-            region: region.clone(),
-            shape,
-            pose,
-        }
-    }
-
-    /// Signed distance from the capsule a–b of `radius` (negative: depth of
-    /// overlap) and the unit direction from the region toward the branch.
-    /// Spheres and capsules are a segment (or point) grown by a radius, as
-    /// branches are, so their signed distance is exact and has no
-    /// degenerate case (a fruit centred on a branch's axis); boxes use
-    /// parry's contact query.
-    fn signed_distance(
-        &self,
-        a: &Point3<f64>,
-        b: &Point3<f64>,
-        radius: f64,
-    ) -> (f64, Vector3<f64>) {
-        let (a, b) = (vec3(a), vec3(b));
-        let grown = |core_a: Vec3, core_b: Vec3, core_radius: f64| {
-            let (on_branch, on_core) = closest_points(a, b, core_a, core_b);
-            let gap = on_branch - on_core;
-            let away = if gap.length() > 1e-12 {
-                gap.normalize()
-            } else {
-                any_perpendicular(b - a)
-            };
-            (gap.length() - core_radius - radius, away)
-        };
-        let (dist, away) = match &self.region {
-            Region::Sphere { centre, radius: r } => grown(vec3(centre), vec3(centre), *r),
-            Region::Capsule {
-                a: p,
-                b: q,
-                radius: r,
-            } => grown(vec3(p), vec3(q), *r),
-            Region::Box { centre, .. } => {
-                let capsule = Capsule::new(a, b, radius);
-                match contact(
-                    &Pose::IDENTITY,
-                    &capsule,
-                    &self.pose,
-                    &*self.shape,
-                    f64::MAX,
-                )
-                .ok()
-                .flatten()
-                {
-                    // normal1 points from the branch toward the region.
-                    Some(c) => (c.dist, -c.normal1),
-                    None => {
-                        let (on_branch, _) = closest_points(a, b, vec3(centre), vec3(centre));
-                        (0.0, (on_branch - vec3(centre)).normalize_or(Vec3::Z))
-                    }
-                }
-            }
-        };
-        (dist, Vector3::new(away.x, away.y, away.z))
-    }
-}
 
 /// One branch's intrusion into a `clear` objective's regions (inflated by
 /// the margin): how deep, and the direction that would take it out.
@@ -199,9 +41,9 @@ pub enum Objective {
     /// Keep every branch at least `margin` away from every region.
     /// Residual: the deepest intrusion into a region inflated by the
     /// margin, 0 when clear.
-    Clear { regions: Vec<Region>, margin: f64 },
+    Clear { regions: Vec<Shape>, margin: f64 },
     /// Bring `node` into `region`. Residual: its distance to the region.
-    Reach { node: usize, region: Region },
+    Reach { node: usize, region: Shape },
 }
 
 /// Default `clear` margin (m): about a gripper finger's width, so a picker
@@ -251,8 +93,8 @@ impl Objective {
     /// A reusable scorer (regions prepared once).
     pub fn scorer(&self) -> Scorer<'_> {
         let regions = match self {
-            Objective::Clear { regions, .. } => regions.iter().map(PreparedRegion::new).collect(),
-            Objective::Reach { region, .. } => vec![PreparedRegion::new(region)],
+            Objective::Clear { regions, .. } => regions.iter().map(Shape::prepared).collect(),
+            Objective::Reach { region, .. } => vec![region.prepared()],
             Objective::Shape { .. } => Vec::new(),
         };
         Scorer {
@@ -270,7 +112,7 @@ impl Objective {
 /// An [`Objective`] with its regions prepared for repeated scoring.
 pub struct Scorer<'a> {
     objective: &'a Objective,
-    regions: Vec<PreparedRegion>,
+    regions: Vec<PreparedShape>,
 }
 
 impl Scorer<'_> {
@@ -297,8 +139,7 @@ impl Scorer<'_> {
                 .fold(0.0, f64::max),
             Objective::Reach { node, .. } => {
                 let p = positions[*node];
-                let region = &self.regions[0];
-                region.shape.distance_to_point(&region.pose, vec3(&p), true)
+                self.regions[0].distance_to_point(&p)
             }
         }
     }

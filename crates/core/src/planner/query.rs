@@ -6,12 +6,12 @@ use std::time::Duration;
 use nalgebra::{Isometry3, Point3};
 use serde::Serialize;
 
+use crate::geometry::shape::Shape;
 use crate::identify::{IdentifyConfig, Probe};
 use crate::planner::base::BaseRegion;
 use crate::planner::objective::{Limits, Objective};
 use crate::planner::search::SearchOptions;
 use crate::robot::arm::PAPER_BASE;
-use crate::robot::collision::Obstacle;
 use crate::robot::motion::execution::ExecutionOptions;
 use crate::robot::motion::rrt::Config;
 use crate::tree::Tree;
@@ -53,7 +53,7 @@ pub struct Query {
     /// Start configuration; `None` is the home pose (or, with a base region,
     /// the first collision-free tucked pose at the chosen base).
     pub start: Option<Config>,
-    pub obstacles: Vec<Obstacle>,
+    pub obstacles: Vec<Shape>,
     pub strategy: Strategy,
     pub budget: Duration,
     /// Policy-ranked nodes searched (`model`, `physics`).

@@ -54,7 +54,7 @@ impl Planner {
     pub fn reach_test<'a>(
         &'a self,
         tree: &'a Tree,
-        obstacles: &[crate::robot::collision::Obstacle],
+        obstacles: &[crate::geometry::shape::Shape],
         stance: &'a Stance,
         start: Option<Config>,
     ) -> impl Fn(&Push) -> bool + Sync + 'a {

@@ -148,3 +148,63 @@ fn a_generated_tree_in_front_of_the_arm() {
         "the arm through the tree must hit a branch: {hit:?}"
     );
 }
+
+/// An obstacle of each shape ([`Shape`]) blocks the arm where it overlaps
+/// a link and not 1 mm further away: a sphere around the wrist, a box and
+/// a capsule just touching its bounding distance.
+#[test]
+fn every_obstacle_shape_blocks_where_it_overlaps() {
+    use treemanip_core::geometry::shape::Shape;
+    let m = model();
+    let tool = m.robot.tool_pose(&REACH).translation.vector;
+    let x = Vector3::x();
+    // How far the arm reaches along +x at this height: the first sphere
+    // centre out along x from the tool that no longer touches.
+    let touches = |shape: Shape| {
+        let obstacles = TreeObstacles::empty().with_obstacles(std::slice::from_ref(&shape));
+        matches!(
+            m.check(&REACH, &obstacles, &Allowed::default()),
+            Some(Hit::Obstacle { index: 0, .. })
+        )
+    };
+    let sphere_at = |d: f64| Shape::Sphere {
+        centre: Point3::from(tool + x * d),
+        radius: 0.05,
+    };
+    assert!(touches(sphere_at(0.0)), "a sphere around the tool");
+    let mut lo = 0.0;
+    let mut hi = 1.0;
+    assert!(!touches(sphere_at(hi)));
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if touches(sphere_at(mid)) {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    // A box and a capsule that hold the last touching sphere touch too;
+    // ones inside the first free sphere (1 mm further out) stay free.
+    let (inside, outside) = (tool + x * (lo - 0.001), tool + x * (hi + 0.001));
+    assert!(touches(sphere_at(lo - 0.001)) && !touches(sphere_at(hi + 0.001)));
+    let cube = |c: Vector3<f64>, half: f64| Shape::Box {
+        centre: Point3::from(c),
+        half_extents: Vector3::repeat(half),
+        yaw: 0.3,
+    };
+    let rod = |c: Vector3<f64>, half: f64, radius: f64| Shape::Capsule {
+        a: Point3::from(c - x * half),
+        b: Point3::from(c + x * half),
+        radius,
+    };
+    assert!(
+        touches(cube(inside, 0.05)),
+        "a cube around the touching sphere"
+    );
+    assert!(touches(rod(inside, 0.1, 0.05)), "a capsule around it");
+    assert!(
+        !touches(cube(outside, 0.05 / 3f64.sqrt() - 1e-9)),
+        "a cube inside the free sphere"
+    );
+    assert!(!touches(rod(outside, 0.02, 0.03)), "a capsule inside it");
+}

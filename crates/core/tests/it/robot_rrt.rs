@@ -205,12 +205,12 @@ fn edge_spacing_bounds_every_shape_points_motion() {
 #[test]
 fn conservative_advancement_accepts_only_free_edges() {
     use rand::{RngExt, SeedableRng};
-    use treemanip_core::robot::collision::Obstacle;
+    use treemanip_core::geometry::shape::Shape;
     use treemanip_core::tree::{ScaParams, generate};
 
     let model = CollisionModel::new(Arm::default());
     let tree = generate(20, 4, &ScaParams::default()).unwrap();
-    let post = Obstacle::Box {
+    let post = Shape::Box {
         centre: Point3::new(-0.2, 0.35, 0.4),
         half_extents: nalgebra::Vector3::new(0.04, 0.04, 0.4),
         yaw: 0.3,

@@ -43,6 +43,7 @@ pub mod robot_planners;
 pub mod robots;
 pub mod scene;
 pub mod server;
+pub mod shape;
 pub mod shutdown;
 pub mod simulate;
 pub mod state;

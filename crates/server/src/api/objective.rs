@@ -6,38 +6,19 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::error::ApiError;
-use super::validate::{check_contact, near_point, targets_at, vector3};
+use super::shape::{REGION, ShapeJson, shape};
+use super::validate::{check_contact, targets_at};
 use treemanip_core::planner::objective::{
     DEFAULT_CLEAR_MARGIN, DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS, LoadMargin,
 };
-use treemanip_core::planner::{Limits, Objective, Region};
+use treemanip_core::planner::{Limits, Objective};
 use treemanip_core::sim::loads::PushLoads;
 use treemanip_core::tree::Tree;
 
 /// Regions a `clear` objective may list.
 pub const MAX_REGIONS: usize = 16;
 /// Largest region size (a radius or half extent) and margin accepted (m).
-pub const MAX_REGION_SIZE: f64 = 2.0;
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum RegionJson {
-    Sphere {
-        centre: Vec<f64>,
-        radius: f64,
-    },
-    Box {
-        centre: Vec<f64>,
-        half_extents: Vec<f64>,
-        #[serde(default)]
-        yaw: f64,
-    },
-    Capsule {
-        a: Vec<f64>,
-        b: Vec<f64>,
-        radius: f64,
-    },
-}
+pub const MAX_REGION_SIZE: f64 = REGION.max;
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
@@ -48,14 +29,14 @@ pub enum ObjectiveJson {
         weights: Option<Vec<f64>>,
     },
     Clear {
-        regions: Vec<RegionJson>,
+        regions: Vec<ShapeJson>,
         #[serde(default)]
         margin: Option<f64>,
     },
     Reach {
         #[serde(deserialize_with = "super::json::integer::usize")]
         node: usize,
-        region: RegionJson,
+        region: ShapeJson,
     },
 }
 
@@ -69,52 +50,6 @@ pub struct LimitsJson {
     /// N.
     #[serde(default)]
     pub max_contact_force: Option<f64>,
-}
-
-fn size(value: f64, field: &str) -> Result<f64, ApiError> {
-    if value.is_finite() && value > 0.0 && value <= MAX_REGION_SIZE {
-        Ok(value)
-    } else {
-        Err(ApiError::invalid_field(
-            field,
-            format!("`{field}` must be positive and at most {MAX_REGION_SIZE} m, not {value}"),
-        ))
-    }
-}
-
-fn region(json: &RegionJson, field: &str) -> Result<Region, ApiError> {
-    Ok(match json {
-        RegionJson::Sphere { centre, radius } => Region::Sphere {
-            centre: near_point(centre, &format!("{field}.centre"))?,
-            radius: size(*radius, &format!("{field}.radius"))?,
-        },
-        RegionJson::Box {
-            centre,
-            half_extents,
-            yaw,
-        } => {
-            let h = vector3(half_extents, &format!("{field}.half_extents"))?;
-            for k in 0..3 {
-                size(h[k], &format!("{field}.half_extents"))?;
-            }
-            if !yaw.is_finite() {
-                return Err(ApiError::invalid_field(
-                    &format!("{field}.yaw"),
-                    format!("`{field}.yaw` must be finite"),
-                ));
-            }
-            Region::Box {
-                centre: near_point(centre, &format!("{field}.centre"))?,
-                half_extents: h,
-                yaw: *yaw,
-            }
-        }
-        RegionJson::Capsule { a, b, radius } => Region::Capsule {
-            a: near_point(a, &format!("{field}.a"))?,
-            b: near_point(b, &format!("{field}.b"))?,
-            radius: size(*radius, &format!("{field}.radius"))?,
-        },
-    })
 }
 
 /// The request's objective: `objective`, or the `target_positions`
@@ -205,7 +140,7 @@ fn from_json(json: &ObjectiveJson, tree: &Tree) -> Result<Objective, ApiError> {
             let regions = regions
                 .iter()
                 .enumerate()
-                .map(|(k, r)| region(r, &format!("objective.regions[{k}]")))
+                .map(|(k, r)| shape(r, &format!("objective.regions[{k}]"), &REGION))
                 .collect::<Result<Vec<_>, _>>()?;
             Ok(Objective::Clear { regions, margin })
         }
@@ -213,7 +148,7 @@ fn from_json(json: &ObjectiveJson, tree: &Tree) -> Result<Objective, ApiError> {
             let node = check_contact(*node, tree, "objective.node")?;
             Ok(Objective::Reach {
                 node,
-                region: region(r, "objective.region")?,
+                region: shape(r, "objective.region", &REGION)?,
             })
         }
     }

@@ -13,14 +13,15 @@ use super::error::ApiError;
 use super::json::ApiJson;
 use super::objective::{LimitsJson, LoadsJson, ObjectiveJson, limits, objective};
 use super::observations::{IdentifyResponse, ProbeJson, identify_config, probes};
+use super::shape::{OBSTACLE, ShapeJson, shape};
 use super::state::ModelInfo;
 use super::tree_json::TreeJson;
-use super::validate::{MAX_DISTANCE, joints, near_point, vector3, within_turn};
+use super::validate::{joints, near_point, within_turn};
+use treemanip_core::geometry::shape::Shape;
 use treemanip_core::graph::Task;
 use treemanip_core::identify::Noise;
 use treemanip_core::planner::base::{BasePose, BaseRegion};
 use treemanip_core::planner::{self, Attempt, Predictor, Query, Stance, Strategy};
-use treemanip_core::robot::collision::Obstacle;
 use treemanip_core::robot::motion::execution::ExecutionOptions;
 use treemanip_core::robot::motion::trajectory::TimedPoint;
 
@@ -60,22 +61,6 @@ pub struct RobotJson {
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum ObstacleJson {
-    Box {
-        centre: Vec<f64>,
-        half_extents: Vec<f64>,
-        #[serde(default)]
-        yaw: f64,
-    },
-    Capsule {
-        a: Vec<f64>,
-        b: Vec<f64>,
-        radius: f64,
-    },
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlanRequest {
     pub tree: TreeJson,
@@ -91,7 +76,7 @@ pub struct PlanRequest {
     #[serde(default)]
     pub robot: RobotJson,
     #[serde(default)]
-    pub obstacles: Vec<ObstacleJson>,
+    pub obstacles: Vec<ShapeJson>,
     #[serde(default)]
     pub strategy: Strategy,
     /// Planning budget (ms); default and maximum are server limits.
@@ -264,7 +249,7 @@ pub(crate) fn stance(robot: &RobotJson) -> Result<Option<Stance>, ApiError> {
     }
 }
 
-fn obstacles(list: &[ObstacleJson]) -> Result<Vec<Obstacle>, ApiError> {
+fn obstacles(list: &[ShapeJson]) -> Result<Vec<Shape>, ApiError> {
     if list.len() > MAX_OBSTACLES {
         return Err(invalid(
             "obstacles",
@@ -274,42 +259,8 @@ fn obstacles(list: &[ObstacleJson]) -> Result<Vec<Obstacle>, ApiError> {
             ),
         ));
     }
-    let size = |v: f64, field: &str| {
-        if v.is_finite() && v > 0.0 && v <= MAX_DISTANCE {
-            Ok(v)
-        } else {
-            Err(invalid(
-                field,
-                format!("`{field}` must be positive and at most {MAX_DISTANCE} m"),
-            ))
-        }
-    };
     list.iter()
-        .map(|o| match o {
-            ObstacleJson::Box {
-                centre,
-                half_extents,
-                yaw,
-            } => {
-                let h = vector3(half_extents, "obstacles.half_extents")?;
-                for k in 0..3 {
-                    size(h[k], "obstacles.half_extents")?;
-                }
-                if !yaw.is_finite() {
-                    return Err(invalid("obstacles.yaw", "`obstacles.yaw` must be finite"));
-                }
-                Ok(Obstacle::Box {
-                    centre: near_point(centre, "obstacles.centre")?,
-                    half_extents: h,
-                    yaw: *yaw,
-                })
-            }
-            ObstacleJson::Capsule { a, b, radius } => Ok(Obstacle::Capsule {
-                a: near_point(a, "obstacles.a")?,
-                b: near_point(b, "obstacles.b")?,
-                radius: size(*radius, "obstacles.radius")?,
-            }),
-        })
+        .map(|o| shape(o, "obstacles", &OBSTACLE))
         .collect()
 }
 

@@ -4,8 +4,9 @@
 //! every bad objective answered with a 4xx naming its field.
 
 use serde_json::{Value, json};
+use treemanip_core::geometry::shape::Shape;
+use treemanip_core::planner::Objective;
 use treemanip_core::planner::objective::SATISFIED;
-use treemanip_core::planner::{Objective, Region};
 use treemanip_core::sim::loads::PushLoads;
 use treemanip_core::sim::{Push, SimConfig, simulate};
 use treemanip_core::tree::{ScaParams, Tree, generate};
@@ -40,7 +41,7 @@ fn plan_clears_a_fruit_and_reports_loads() {
     let tree_json = serde_json::to_value(TreeJson::from_tree(&tree)).unwrap();
     let region = json!({ "kind": "sphere", "centre": p(&centre), "radius": 0.04 });
     let objective = Objective::Clear {
-        regions: vec![Region::Sphere {
+        regions: vec![Shape::Sphere {
             centre,
             radius: 0.04,
         }],
@@ -144,6 +145,44 @@ fn plan_clears_a_fruit_and_reports_loads() {
     assert_eq!(a["objective"], "shape");
 }
 
+/// A sphere obstacle (the shape regions have) is taken, and a sphere
+/// swallowing the tree's root blocks every plan from the start.
+#[test]
+fn sphere_obstacles_are_obstacles() {
+    let server = Server::start(&["--models-dir", MODELS]);
+    let (tree, _) = task();
+    let tree_json = serde_json::to_value(TreeJson::from_tree(&tree)).unwrap();
+    let targets: Vec<Value> = tree.positions().iter().map(p).collect();
+    let body = |obstacle: Value| {
+        json!({ "tree": tree_json, "target_positions": targets, "strategy": "physics",
+                "max_evaluations": 8, "obstacles": [obstacle] })
+    };
+    let (status, answer) = server.json(
+        "POST",
+        "/v1/plan",
+        &body(json!({ "kind": "sphere", "centre": [2.0, 2.0, 0.5], "radius": 0.1 })),
+    );
+    assert_eq!(status, 200, "{answer}");
+    // Around the arm's default base (the paper's mount at (-0.5, 0, 0.1)).
+    let (status, answer) = server.json(
+        "POST",
+        "/v1/plan",
+        &body(json!({ "kind": "sphere", "centre": [-0.5, 0.0, 0.3], "radius": 0.4 })),
+    );
+    assert_eq!(status, 422, "{answer}");
+    assert_eq!(
+        answer["error"]["details"]["field"], "robot.start",
+        "{answer}"
+    );
+    assert!(
+        answer["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("obstacle"),
+        "{answer}"
+    );
+}
+
 /// Each bad objective or limit gets a 4xx JSON error naming its field, and
 /// the server goes on answering.
 #[test]
@@ -212,6 +251,20 @@ fn bad_objectives_are_named() {
         (
             json!({ "target_positions": targets, "limits": { "max_contact_force": -5.0 } }),
             "limits.max_contact_force",
+        ),
+        // Obstacles are the same shapes, checked by the same validator
+        // (sizes up to 5 m where a region's stop at 2 m).
+        (
+            json!({ "target_positions": targets, "obstacles": [{ "kind": "sphere", "centre": [0, 0, 0.5], "radius": 6.0 }] }),
+            "obstacles.radius",
+        ),
+        (
+            json!({ "target_positions": targets, "obstacles": [{ "kind": "box", "centre": [100, 0, 0.5], "half_extents": [0.1, 0.1, 0.1] }] }),
+            "obstacles.centre",
+        ),
+        (
+            json!({ "objective": { "kind": "clear", "regions": [{ "kind": "capsule", "a": [0, 0, 0], "b": [0, 0, 1], "radius": 3.0 }] } }),
+            "objective.regions[0].radius",
         ),
     ];
     for (extra, field) in cases {

@@ -284,8 +284,8 @@ impl Pair {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::shape::Shape;
     use crate::robot::arm::Arm;
-    use crate::robot::collision::Obstacle;
     use crate::robot::ur5::JOINT_LIMITS;
     use crate::tree::{ScaParams, generate};
     use nalgebra::Point3;
@@ -351,12 +351,12 @@ mod tests {
         let model = CollisionModel::new(Arm::default());
         let tree = generate(20, 3, &ScaParams::default()).unwrap();
         let obstacles = TreeObstacles::new(&tree).with_obstacles(&[
-            Obstacle::Capsule {
+            Shape::Capsule {
                 a: Point3::new(-0.3, 0.25, 0.0),
                 b: Point3::new(-0.3, 0.25, 1.2),
                 radius: 0.04,
             },
-            Obstacle::Box {
+            Shape::Box {
                 centre: Point3::new(-0.2, -0.3, 0.5),
                 half_extents: Vector3::new(0.05, 0.2, 0.3),
                 yaw: 0.4,

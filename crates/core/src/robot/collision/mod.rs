@@ -24,4 +24,4 @@ pub mod model;
 mod placement;
 
 pub use clearance::SweepRates;
-pub use model::{Allowed, CollisionModel, GROUND_Z, Hit, Obstacle, SELF_CLEARANCE, TreeObstacles};
+pub use model::{Allowed, CollisionModel, GROUND_Z, Hit, SELF_CLEARANCE, TreeObstacles};

@@ -1,11 +1,12 @@
 //! The collision model: the arm's shapes, the tree's and the obstacles', and
 //! whether a configuration or a straight edge between two is free.
 
-use nalgebra::{Isometry3, Point3, Vector3};
-use parry3d_f64::shape::{Capsule, Cuboid};
+use nalgebra::{Isometry3, Point3};
+use parry3d_f64::shape::Capsule;
 use serde::Serialize;
 
-use crate::geometry::convert::{pose, vec3};
+use crate::geometry::convert::vec3;
+use crate::geometry::shape::Shape;
 use crate::robot::arm::Arm;
 use crate::robot::model::joint_vector::{JointVector, MAX_DOF};
 use crate::robot::model::link_geometry::LinkShape;
@@ -55,50 +56,6 @@ pub enum Hit {
         link: String,
         index: usize,
     },
-}
-
-/// A fixed obstacle in the tree's frame (m, rad).
-#[derive(Debug, Clone, PartialEq)]
-pub enum Obstacle {
-    /// A box with its centre, half extents along its axes, and a rotation
-    /// about the vertical axis.
-    Box {
-        centre: Point3<f64>,
-        half_extents: Vector3<f64>,
-        yaw: f64,
-    },
-    /// A capsule between two points.
-    Capsule {
-        a: Point3<f64>,
-        b: Point3<f64>,
-        radius: f64,
-    },
-}
-
-impl Obstacle {
-    pub(super) fn world_shape(&self) -> (WorldShape, Aabb) {
-        match self {
-            Obstacle::Capsule { a, b, radius } => (
-                WorldShape::Capsule(Capsule::new(vec3(&a.coords), vec3(&b.coords), *radius)),
-                Aabb::of_capsule(&a.coords, &b.coords, *radius),
-            ),
-            Obstacle::Box {
-                centre,
-                half_extents,
-                yaw,
-            } => {
-                let iso = Isometry3::new(centre.coords, Vector3::z() * *yaw);
-                let extent = iso.rotation.to_rotation_matrix().matrix().abs() * half_extents;
-                (
-                    WorldShape::Box(Cuboid::new(vec3(half_extents)), pose(&iso)),
-                    Aabb {
-                        min: centre.coords - extent,
-                        max: centre.coords + extent,
-                    },
-                )
-            }
-        }
-    }
 }
 
 /// The tree's branches as capsules, and any fixed obstacles around it.
@@ -156,9 +113,9 @@ impl TreeObstacles {
     }
 
     /// These obstacles with `obstacles` added as fixed ones.
-    pub fn with_obstacles(self, obstacles: &[Obstacle]) -> Self {
+    pub fn with_obstacles(self, obstacles: &[Shape]) -> Self {
         let mut fixed = self.fixed.to_vec();
-        fixed.extend(obstacles.iter().map(Obstacle::world_shape));
+        fixed.extend(obstacles.iter().map(Shape::world));
         Self::from_parts(self.branches, fixed.into())
     }
 

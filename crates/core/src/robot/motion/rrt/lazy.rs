@@ -137,18 +137,20 @@ impl Tree<'_> {
 
 /// See the module documentation; same inputs, outputs and budgets as the
 /// textbook [`crate::robot::motion::rrt::rrt_star`].
+/// The caller has started the `clock` and drawn the `sampler` (the goals
+/// checked, the sampling box found).
 pub(super) fn rrt_star(
     start: &Config,
-    goals: &[Config],
+    sampler: Sampler,
     validator: &dyn MotionValidator,
     options: &RrtStarOptions,
+    clock: Instant,
 ) -> Result<RrtPath, RrtError> {
-    let clock = Instant::now();
     let Sampler {
         goals,
         mut rng,
         bounds,
-    } = Sampler::new(start, goals, validator, options)?;
+    } = sampler;
     let mut tree = Tree {
         nodes: vec![Node {
             q: *start,

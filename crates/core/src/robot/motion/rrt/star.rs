@@ -23,15 +23,16 @@ pub fn rrt_star(
     validator: &dyn MotionValidator,
     options: &RrtStarOptions,
 ) -> Result<RrtPath, RrtError> {
-    if options.lazy {
-        return lazy::rrt_star(start, goals, validator, options);
-    }
     let clock = Instant::now();
+    let sampler = Sampler::new(start, goals, validator, options)?;
+    if options.lazy {
+        return lazy::rrt_star(start, sampler, validator, options, clock);
+    }
     let Sampler {
         goals,
         mut rng,
         bounds,
-    } = Sampler::new(start, goals, validator, options)?;
+    } = sampler;
     let mut nodes = vec![Node {
         q: *start,
         parent: None,

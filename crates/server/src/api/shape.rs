@@ -1,0 +1,104 @@
+//! The one shape schema of the wire: `objective.regions`, `objective.region`
+//! and `obstacles` are each a [`ShapeJson`] (a sphere, a box turned about
+//! the vertical, or a capsule; m, rad), checked by one validator into
+//! [`treemanip_core::geometry::shape::Shape`].
+
+use serde::{Deserialize, Serialize};
+use treemanip_core::geometry::shape::Shape;
+
+use super::error::ApiError;
+use super::validate::{MAX_DISTANCE, near_point, vector3};
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeJson {
+    Sphere {
+        centre: Vec<f64>,
+        radius: f64,
+    },
+    Box {
+        centre: Vec<f64>,
+        half_extents: Vec<f64>,
+        #[serde(default)]
+        yaw: f64,
+    },
+    Capsule {
+        a: Vec<f64>,
+        b: Vec<f64>,
+        radius: f64,
+    },
+}
+
+/// How large a shape may be where it is used, and whether a refusal
+/// quotes the value.
+#[derive(Debug, Clone, Copy)]
+pub struct SizeRule {
+    /// The largest radius or half extent (m).
+    pub max: f64,
+    /// Whether the message ends with the value refused.
+    pub quote_value: bool,
+}
+
+/// A region of an objective: a fruit, a box, a line of sight (at most 2 m).
+pub const REGION: SizeRule = SizeRule {
+    max: 2.0,
+    quote_value: true,
+};
+
+/// An obstacle: a post, a wire, a neighbouring stem (within the 5 m any
+/// point may lie from the root). Its messages never quoted the value, and
+/// answers stay as they were.
+pub const OBSTACLE: SizeRule = SizeRule {
+    max: MAX_DISTANCE,
+    quote_value: false,
+};
+
+fn size(value: f64, field: &str, rule: &SizeRule) -> Result<f64, ApiError> {
+    if value.is_finite() && value > 0.0 && value <= rule.max {
+        return Ok(value);
+    }
+    let max = rule.max;
+    let message = if rule.quote_value {
+        format!("`{field}` must be positive and at most {max} m, not {value}")
+    } else {
+        format!("`{field}` must be positive and at most {max} m")
+    };
+    Err(ApiError::invalid_field(field, message))
+}
+
+/// `json` at `field` (e.g. `objective.regions[2]`), checked: points within
+/// reach of the root, sizes positive and within `rule`, a finite yaw.
+pub fn shape(json: &ShapeJson, field: &str, rule: &SizeRule) -> Result<Shape, ApiError> {
+    Ok(match json {
+        ShapeJson::Sphere { centre, radius } => Shape::Sphere {
+            centre: near_point(centre, &format!("{field}.centre"))?,
+            radius: size(*radius, &format!("{field}.radius"), rule)?,
+        },
+        ShapeJson::Box {
+            centre,
+            half_extents,
+            yaw,
+        } => {
+            let h = vector3(half_extents, &format!("{field}.half_extents"))?;
+            for k in 0..3 {
+                size(h[k], &format!("{field}.half_extents"), rule)?;
+            }
+            if !yaw.is_finite() {
+                return Err(ApiError::invalid_field(
+                    &format!("{field}.yaw"),
+                    format!("`{field}.yaw` must be finite"),
+                ));
+            }
+            Shape::Box {
+                centre: near_point(centre, &format!("{field}.centre"))?,
+                half_extents: h,
+                yaw: *yaw,
+            }
+        }
+        ShapeJson::Capsule { a, b, radius } => Shape::Capsule {
+            a: near_point(a, &format!("{field}.a"))?,
+            b: near_point(b, &format!("{field}.b"))?,
+            radius: size(*radius, &format!("{field}.radius"), rule)?,
+        },
+    })
+}
