@@ -365,11 +365,11 @@ fn obstacles_are_respected_and_named() {
     );
     check_plan(&around, &q);
     // A wall over the whole workspace makes the start collide, by name.
-    let wall = Shape::Box {
-        centre: Point3::new(-0.5, 0.0, 0.5),
-        half_extents: Vector3::new(0.3, 0.3, 0.3),
-        yaw: 0.3,
-    };
+    let wall = Shape::turned_box(
+        Point3::new(-0.5, 0.0, 0.5),
+        Vector3::new(0.3, 0.3, 0.3),
+        0.3,
+    );
     let walled_in = TreeObstacles::new(&tree).with_obstacles(&[post, wall.clone()]);
     let hit = CollisionModel::new(Arm::default()).check(
         &treemanip::robot::ur5::HOME,

@@ -69,11 +69,11 @@ fn residuals_match_closed_forms() {
     // spans x = 0.25…0.45 and swallows the branch's last 5 cm: the
     // shallowest way out is sideways or up, 2 cm + 5 mm.
     let boxed = |yaw: f64| Objective::Clear {
-        regions: vec![Shape::Box {
-            centre: Point3::new(0.35, 0.0, 0.4),
-            half_extents: Vector3::new(0.1, 0.02, 0.02),
+        regions: vec![Shape::turned_box(
+            Point3::new(0.35, 0.0, 0.4),
+            Vector3::new(0.1, 0.02, 0.02),
             yaw,
-        }],
+        )],
         margin: 0.0,
     };
     assert_eq!(boxed(std::f64::consts::FRAC_PI_2).residual(&tree, p), 0.0);

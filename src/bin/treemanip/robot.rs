@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use treemanip::robot::model::link_geometry::{LinkShape, link_geometry, package_path_from_env};
+use treemanip::geometry::shape::Shape;
+use treemanip::robot::model::link_geometry::{link_geometry, package_path_from_env};
 use treemanip::robot::model::self_pairs::{DisableReason, disabled_pairs};
 use treemanip::robot::model::urdf_chain::{Chain, parse_urdf};
 
@@ -116,19 +117,21 @@ fn shapes(args: ShapesArgs) -> anyhow::Result<()> {
         let mut kinds: Vec<String> = Vec::new();
         for s in &link.shapes {
             kinds.push(match s {
-                LinkShape::Box { half_extents, .. } => format!(
+                Shape::Box { half_extents, .. } => format!(
                     "box {:.3}×{:.3}×{:.3}",
                     2.0 * half_extents.x,
                     2.0 * half_extents.y,
                     2.0 * half_extents.z
                 ),
-                LinkShape::Cylinder {
+                Shape::Cylinder {
                     radius,
                     half_length,
                     ..
                 } => format!("cylinder r {radius:.3} l {:.3}", 2.0 * half_length),
-                LinkShape::Sphere { radius, .. } => format!("sphere r {radius:.3}"),
-                LinkShape::Capsule(c) => format!("capsule r {:.3} l {:.3}", c.radius, c.height()),
+                Shape::Sphere { radius, .. } => format!("sphere r {radius:.3}"),
+                Shape::Capsule { a, b, radius } => {
+                    format!("capsule r {radius:.3} l {:.3}", (b - a).norm())
+                }
             });
         }
         let meshes: Vec<String> = link

@@ -19,10 +19,10 @@ use std::collections::HashMap;
 
 use nalgebra::{Isometry3, Point3, Unit, UnitQuaternion, Vector3};
 
+use crate::geometry::shape::Shape;
 use crate::robot::kinematics::ur_kinematics::UrKinematics;
 use crate::robot::model::description::RobotDescription;
 use crate::robot::model::joint_vector::{JointVector, MAX_DOF};
-use crate::robot::model::link_geometry::LinkShape;
 use crate::robot::model::tool::{GRIPPER_BOXES, GRIPPER_LINK, TOOL_LINK, TOOL_OFFSET};
 use crate::robot::model::urdf_chain::{Chain, JointKind};
 
@@ -76,7 +76,7 @@ struct ArmLink {
     /// Pose of the joint frame in the parent link.
     origin: Isometry3<f64>,
     motion: Option<Motion>,
-    shapes: Vec<LinkShape>,
+    shapes: Vec<Shape>,
 }
 
 #[derive(Debug, Clone)]
@@ -188,7 +188,7 @@ impl Arm {
             }
         }
         let mount = d.tool.mount.isometry();
-        let tool_shapes: Vec<LinkShape> = match &d.tool.shapes {
+        let tool_shapes: Vec<Shape> = match &d.tool.shapes {
             Some(_) if !d.tool.gripper => {
                 return Err("tool.shapes is given but tool.gripper is false".to_owned());
             }
@@ -202,7 +202,7 @@ impl Arm {
                 .collect::<Result<_, _>>()?,
             None => GRIPPER_BOXES
                 .iter()
-                .map(|b| LinkShape::Box {
+                .map(|b| Shape::Box {
                     pose: Isometry3::translation(b.centre[0], b.centre[1], b.centre[2]),
                     half_extents: Vector3::from(b.size) / 2.0,
                 })
@@ -498,7 +498,7 @@ impl Arm {
     }
 
     /// Collision shapes of each link, in link order.
-    pub fn link_shapes(&self) -> impl Iterator<Item = (&str, &[LinkShape])> {
+    pub fn link_shapes(&self) -> impl Iterator<Item = (&str, &[Shape])> {
         self.links
             .iter()
             .map(|l| (l.name.as_str(), l.shapes.as_slice()))

@@ -187,11 +187,8 @@ fn every_obstacle_shape_blocks_where_it_overlaps() {
     // ones inside the first free sphere (1 mm further out) stay free.
     let (inside, outside) = (tool + x * (lo - 0.001), tool + x * (hi + 0.001));
     assert!(touches(sphere_at(lo - 0.001)) && !touches(sphere_at(hi + 0.001)));
-    let cube = |c: Vector3<f64>, half: f64| Shape::Box {
-        centre: Point3::from(c),
-        half_extents: Vector3::repeat(half),
-        yaw: 0.3,
-    };
+    let cube =
+        |c: Vector3<f64>, half: f64| Shape::turned_box(Point3::from(c), Vector3::repeat(half), 0.3);
     let rod = |c: Vector3<f64>, half: f64, radius: f64| Shape::Capsule {
         a: Point3::from(c - x * half),
         b: Point3::from(c + x * half),

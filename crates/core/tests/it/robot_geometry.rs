@@ -7,9 +7,9 @@
 use std::path::Path;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
-use treemanip_core::robot::model::link_geometry::{
-    LinkShape, link_geometry, mesh_triangles, resolve_mesh,
-};
+use treemanip_core::geometry::shape::Shape;
+use treemanip_core::robot::model::link_geometry::{link_geometry, mesh_triangles, resolve_mesh};
+use treemanip_core::robot::model::mesh_fit::Capsule;
 
 use crate::robot_chain::panda_urdf;
 
@@ -35,7 +35,11 @@ fn the_pandas_meshes_are_enclosed_by_their_capsules() {
             .shapes
             .iter()
             .filter_map(|s| match s {
-                LinkShape::Capsule(c) => Some(*c),
+                Shape::Capsule { a, b, radius } => Some(Capsule {
+                    a: *a,
+                    b: *b,
+                    radius: *radius,
+                }),
                 _ => None,
             })
             .collect();

@@ -6,8 +6,8 @@ use std::f64::consts::PI;
 use nalgebra::{Isometry3, Matrix4, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use treemanip_core::geometry::shape::Shape;
 use treemanip_core::robot::Arm;
-use treemanip_core::robot::model::link_geometry::LinkShape;
 use treemanip_core::robot::model::tool;
 use treemanip_core::robot::ur5::{self, DH_A, DH_ALPHA, DH_D, JOINT_LIMITS};
 
@@ -119,7 +119,7 @@ fn capsules_enclose_the_reference_meshes() {
         let capsules: Vec<(Vector3<f64>, Vector3<f64>, f64)> = shapes
             .iter()
             .filter_map(|s| match s {
-                LinkShape::Capsule(c) => Some((c.a.coords, c.b.coords, c.radius)),
+                Shape::Capsule { a, b, radius } => Some((a.coords, b.coords, *radius)),
                 _ => None,
             })
             .collect();

@@ -210,11 +210,11 @@ fn conservative_advancement_accepts_only_free_edges() {
 
     let model = CollisionModel::new(Arm::default());
     let tree = generate(20, 4, &ScaParams::default()).unwrap();
-    let post = Shape::Box {
-        centre: Point3::new(-0.2, 0.35, 0.4),
-        half_extents: nalgebra::Vector3::new(0.04, 0.04, 0.4),
-        yaw: 0.3,
-    };
+    let post = Shape::turned_box(
+        Point3::new(-0.2, 0.35, 0.4),
+        nalgebra::Vector3::new(0.04, 0.04, 0.4),
+        0.3,
+    );
     let obstacles = TreeObstacles::new(&tree).with_obstacles(&[post]);
     let scene = PlanningScene::new(&model, &obstacles, Allowed::default());
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);

@@ -15,8 +15,8 @@ use super::AppState;
 use super::error::ApiError;
 use super::json::ApiJson;
 use super::tree_json::{TreeJson, tree_error};
+use treemanip_core::geometry::shape::Shape;
 use treemanip_core::planner::base::BasePose;
-use treemanip_core::robot::model::link_geometry::LinkShape;
 
 use treemanip_core::tree::sca::{self, MIN_GENERATED_NODES, ScaError, ScaParams};
 use treemanip_core::tree::urdf::{UrdfError, from_urdf_str};
@@ -259,21 +259,24 @@ pub async fn link_poses(
                     shapes: shapes
                         .iter()
                         .map(|s| match s {
-                            LinkShape::Capsule(c) => ShapeJson::Capsule {
-                                a: xyz(&c.a.coords),
-                                b: xyz(&c.b.coords),
-                                radius: c.radius,
+                            Shape::Capsule { a, b, radius } => ShapeJson::Capsule {
+                                a: xyz(&a.coords),
+                                b: xyz(&b.coords),
+                                radius: *radius,
                             },
-                            LinkShape::Sphere { center, radius } => ShapeJson::Capsule {
+                            Shape::Sphere {
+                                centre: center,
+                                radius,
+                            } => ShapeJson::Capsule {
                                 a: xyz(&center.coords),
                                 b: xyz(&center.coords),
                                 radius: *radius,
                             },
-                            LinkShape::Box { pose, half_extents } => ShapeJson::Box {
+                            Shape::Box { pose, half_extents } => ShapeJson::Box {
                                 pose: pose7(pose),
                                 half_extents: xyz(half_extents),
                             },
-                            LinkShape::Cylinder {
+                            Shape::Cylinder {
                                 pose,
                                 radius,
                                 half_length,

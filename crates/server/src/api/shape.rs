@@ -89,11 +89,7 @@ pub fn shape(json: &ShapeJson, field: &str, rule: &SizeRule) -> Result<Shape, Ap
                     format!("`{field}.yaw` must be finite"),
                 ));
             }
-            Shape::Box {
-                centre: near_point(centre, &format!("{field}.centre"))?,
-                half_extents: h,
-                yaw: *yaw,
-            }
+            Shape::turned_box(near_point(centre, &format!("{field}.centre"))?, h, *yaw)
         }
         ShapeJson::Capsule { a, b, radius } => Shape::Capsule {
             a: near_point(a, &format!("{field}.a"))?,

@@ -3,9 +3,9 @@
 
 use nalgebra::Isometry3;
 
+use crate::geometry::shape::Shape;
 use crate::robot::arm::Arm;
 use crate::robot::model::joint_vector::JointVector;
-use crate::robot::model::link_geometry::LinkShape;
 
 impl Arm {
     /// Upper bounds, in any configuration, on the distance from each
@@ -19,7 +19,7 @@ impl Arm {
     pub fn lever_arms(&self, slack: f64) -> JointVector {
         let mut arms = JointVector::zeros(self.dof());
         for (l, link) in self.links.iter().enumerate() {
-            let reach = link.shapes.iter().map(LinkShape::reach).fold(0.0, f64::max);
+            let reach = link.shapes.iter().map(Shape::reach).fold(0.0, f64::max);
             if link.shapes.is_empty() && l != self.tool {
                 continue;
             }

@@ -16,7 +16,7 @@ use std::cell::Cell;
 
 use crate::geometry::world_shape::{WorldShape, WorldShapes, distance};
 use crate::robot::arm::JointAxes;
-use crate::robot::collision::bounds::{bounding_points, from_axis};
+use crate::robot::collision::bounds::from_axis;
 use crate::robot::collision::model::{
     Allowed, CollisionModel, GROUND_Z, SELF_CLEARANCE, TreeObstacles,
 };
@@ -80,7 +80,7 @@ impl CollisionModel {
             .shapes
             .iter()
             .map(|slot| {
-                let (points, pad) = bounding_points(&slot.shape, &poses[slot.link], 0.0);
+                let (points, pad) = slot.shape.bounding_points(&poses[slot.link], 0.0);
                 JointVector::from_fn(dof, |i| {
                     if !slot.moved_by[i] || dq[i] == 0.0 {
                         return 0.0;
@@ -356,11 +356,11 @@ mod tests {
                 b: Point3::new(-0.3, 0.25, 1.2),
                 radius: 0.04,
             },
-            Shape::Box {
-                centre: Point3::new(-0.2, -0.3, 0.5),
-                half_extents: Vector3::new(0.05, 0.2, 0.3),
-                yaw: 0.4,
-            },
+            Shape::turned_box(
+                Point3::new(-0.2, -0.3, 0.5),
+                Vector3::new(0.05, 0.2, 0.3),
+                0.4,
+            ),
         ]);
         let allowed = Allowed {
             gripper_branches: vec![tree.len() - 1],

@@ -13,15 +13,13 @@
 //!   configuration and edge checks;
 //! - [`clearance`]: clearance and sweep-rate bounds (conservative
 //!   advancement along an edge);
-//! - `placement` and `bounds`: link shapes placed in the world, and the
-//!   points that bound them.
+//! - `bounds`: a point's lever arm about a joint's axis.
 //!
 //! The shapes themselves and their queries are [`crate::geometry`]'s.
 
 mod bounds;
 pub mod clearance;
 pub mod model;
-mod placement;
 
 pub use clearance::SweepRates;
 pub use model::{Allowed, CollisionModel, GROUND_Z, Hit, SELF_CLEARANCE, TreeObstacles};

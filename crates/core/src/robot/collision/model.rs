@@ -9,13 +9,11 @@ use crate::geometry::convert::vec3;
 use crate::geometry::shape::Shape;
 use crate::robot::arm::Arm;
 use crate::robot::model::joint_vector::{JointVector, MAX_DOF};
-use crate::robot::model::link_geometry::LinkShape;
 use crate::tree::Tree;
 
 use crate::geometry::aabb::Aabb;
 use crate::geometry::world_shape::{WorldShape, WorldShapes, intersects};
-use crate::robot::collision::bounds::{bounding_points, from_axis};
-use crate::robot::collision::placement::world_shape;
+use crate::robot::collision::bounds::from_axis;
 
 /// Clearance two arm shapes of a self-collision pair need (m), however
 /// much the environment checks grow the shapes. The pairs a description
@@ -115,7 +113,11 @@ impl TreeObstacles {
     /// These obstacles with `obstacles` added as fixed ones.
     pub fn with_obstacles(self, obstacles: &[Shape]) -> Self {
         let mut fixed = self.fixed.to_vec();
-        fixed.extend(obstacles.iter().map(Shape::world));
+        fixed.extend(
+            obstacles
+                .iter()
+                .map(|o| o.world(&Isometry3::identity(), 0.0)),
+        );
         Self::from_parts(self.branches, fixed.into())
     }
 
@@ -159,7 +161,7 @@ pub struct Allowed {
 #[derive(Debug, Clone)]
 pub(crate) struct ShapeSlot {
     pub(super) link: usize,
-    pub(super) shape: LinkShape,
+    pub(super) shape: Shape,
     /// Rigid with the tip (tool, hand, flange): may touch the held branch.
     pub(super) gripper: bool,
     /// Fixed to the base: not checked against the ground.
@@ -297,8 +299,8 @@ impl CollisionModel {
             .iter()
             .filter_map(|slot| {
                 let (a, b, r) = match &slot.shape {
-                    LinkShape::Capsule(c) => (c.a, c.b, c.radius),
-                    LinkShape::Sphere { center, radius } => (*center, *center, *radius),
+                    Shape::Capsule { a, b, radius } => (*a, *b, *radius),
+                    Shape::Sphere { centre, radius } => (*centre, *centre, *radius),
                     _ => return None,
                 };
                 let p = poses[slot.link];
@@ -327,7 +329,7 @@ impl CollisionModel {
             reach[i] = self.lever_arms[i] + margin;
         }
         for slot in &self.shapes {
-            let (points, pad) = bounding_points(&slot.shape, &poses[slot.link], margin);
+            let (points, pad) = slot.shape.bounding_points(&poses[slot.link], margin);
             let single_axis = |i: usize| !axes[i].2 && !self.drives_several[i];
             for i in (0..dof).filter(|&i| slot.moved_by[i] && single_axis(i)) {
                 for p in &points {
@@ -358,7 +360,7 @@ impl CollisionModel {
     pub(super) fn world_shapes_at(&self, poses: &[Isometry3<f64>], margin: f64) -> WorldShapes {
         self.shapes
             .iter()
-            .map(|slot| world_shape(&slot.shape, &poses[slot.link], margin))
+            .map(|slot| slot.shape.world(&poses[slot.link], margin))
             .collect()
     }
 

@@ -30,9 +30,8 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+use crate::geometry::shape::Shape;
 pub use crate::robot::model::import::import;
-use crate::robot::model::link_geometry::LinkShape;
-use crate::robot::model::mesh_fit::Capsule;
 use crate::robot::model::self_pairs::DisabledPair;
 use crate::robot::model::urdf_chain::{Chain, ChainJoint, JointKind, Mimic};
 
@@ -284,18 +283,18 @@ pub(crate) fn arr(v: &Vector3<f64>) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
-pub(crate) fn shape_spec(s: &LinkShape) -> ShapeSpec {
+pub(crate) fn shape_spec(s: &Shape) -> ShapeSpec {
     match s {
-        LinkShape::Capsule(c) => ShapeSpec::Capsule {
-            a: arr(&c.a.coords),
-            b: arr(&c.b.coords),
-            radius: c.radius,
+        Shape::Capsule { a, b, radius } => ShapeSpec::Capsule {
+            a: arr(&a.coords),
+            b: arr(&b.coords),
+            radius: *radius,
         },
-        LinkShape::Box { pose, half_extents } => ShapeSpec::Box {
+        Shape::Box { pose, half_extents } => ShapeSpec::Box {
             origin: pose.into(),
             size: arr(&(half_extents * 2.0)),
         },
-        LinkShape::Cylinder {
+        Shape::Cylinder {
             pose,
             radius,
             half_length,
@@ -304,7 +303,10 @@ pub(crate) fn shape_spec(s: &LinkShape) -> ShapeSpec {
             radius: *radius,
             length: 2.0 * half_length,
         },
-        LinkShape::Sphere { center, radius } => ShapeSpec::Sphere {
+        Shape::Sphere {
+            centre: center,
+            radius,
+        } => ShapeSpec::Sphere {
             center: arr(&center.coords),
             radius: *radius,
         },
@@ -313,7 +315,7 @@ pub(crate) fn shape_spec(s: &LinkShape) -> ShapeSpec {
 
 impl ShapeSpec {
     /// The shape, checked.
-    pub fn shape(&self) -> Result<LinkShape, String> {
+    pub fn shape(&self) -> Result<Shape, String> {
         let positive = |what: &str, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(v)
@@ -322,12 +324,12 @@ impl ShapeSpec {
             }
         };
         Ok(match self {
-            ShapeSpec::Capsule { a, b, radius } => LinkShape::Capsule(Capsule {
+            ShapeSpec::Capsule { a, b, radius } => Shape::Capsule {
                 a: Point3::from(*a),
                 b: Point3::from(*b),
                 radius: positive("radius", *radius)?,
-            }),
-            ShapeSpec::Box { origin, size } => LinkShape::Box {
+            },
+            ShapeSpec::Box { origin, size } => Shape::Box {
                 pose: origin.isometry(),
                 half_extents: Vector3::new(
                     positive("size", size[0])? / 2.0,
@@ -339,13 +341,13 @@ impl ShapeSpec {
                 origin,
                 radius,
                 length,
-            } => LinkShape::Cylinder {
+            } => Shape::Cylinder {
                 pose: origin.isometry(),
                 radius: positive("radius", *radius)?,
                 half_length: positive("length", *length)? / 2.0,
             },
-            ShapeSpec::Sphere { center, radius } => LinkShape::Sphere {
-                center: Point3::from(*center),
+            ShapeSpec::Sphere { center, radius } => Shape::Sphere {
+                centre: Point3::from(*center),
                 radius: positive("radius", *radius)?,
             },
         })

@@ -22,84 +22,12 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
+use crate::geometry::shape::Shape;
 use crate::robot::model::mesh_fit::{Capsule, fit_capsules};
 use crate::robot::model::urdf_chain::isometry;
 
 /// The environment variable listing package directories.
 pub const PACKAGE_PATH_VAR: &str = "TREEMANIP_PACKAGE_PATH";
-
-/// One collision shape in its link's frame (m).
-#[derive(Debug, Clone, PartialEq)]
-pub enum LinkShape {
-    Box {
-        pose: Isometry3<f64>,
-        half_extents: Vector3<f64>,
-    },
-    /// Along the local z axis of `pose`.
-    Cylinder {
-        pose: Isometry3<f64>,
-        radius: f64,
-        half_length: f64,
-    },
-    Sphere {
-        center: Point3<f64>,
-        radius: f64,
-    },
-    Capsule(Capsule),
-}
-
-impl LinkShape {
-    /// This shape moved by `pose`.
-    pub fn placed(&self, pose: &Isometry3<f64>) -> LinkShape {
-        match self {
-            LinkShape::Capsule(c) => {
-                let mut c = *c;
-                c.a = pose * c.a;
-                c.b = pose * c.b;
-                LinkShape::Capsule(c)
-            }
-            LinkShape::Sphere { center, radius } => LinkShape::Sphere {
-                center: pose * center,
-                radius: *radius,
-            },
-            LinkShape::Box {
-                pose: at,
-                half_extents,
-            } => LinkShape::Box {
-                pose: pose * at,
-                half_extents: *half_extents,
-            },
-            LinkShape::Cylinder {
-                pose: at,
-                radius,
-                half_length,
-            } => LinkShape::Cylinder {
-                pose: pose * at,
-                radius: *radius,
-                half_length: *half_length,
-            },
-        }
-    }
-
-    /// How far the shape reaches from its link's origin (m).
-    pub fn reach(&self) -> f64 {
-        match self {
-            LinkShape::Capsule(c) => c.a.coords.norm().max(c.b.coords.norm()) + c.radius,
-            LinkShape::Sphere { center, radius } => center.coords.norm() + radius,
-            LinkShape::Box { pose, half_extents } => {
-                pose.translation.vector.norm() + half_extents.norm()
-            }
-            LinkShape::Cylinder {
-                pose,
-                radius,
-                half_length,
-            } => {
-                pose.translation.vector.norm()
-                    + (radius * radius + half_length * half_length).sqrt()
-            }
-        }
-    }
-}
 
 /// How one mesh was approximated.
 #[derive(Debug, Clone, PartialEq)]
@@ -115,7 +43,7 @@ pub struct MeshReport {
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinkGeometry {
     pub link: String,
-    pub shapes: Vec<LinkShape>,
+    pub shapes: Vec<Shape>,
     pub meshes: Vec<MeshReport>,
 }
 
@@ -275,7 +203,7 @@ pub fn link_geometry(
             match &collision.geometry {
                 urdf_rs::Geometry::Box { size } => {
                     let [x, y, z] = size.0;
-                    geometry.shapes.push(LinkShape::Box {
+                    geometry.shapes.push(Shape::Box {
                         pose,
                         half_extents: Vector3::new(
                             positive(name, "box size x", x)? / 2.0,
@@ -285,7 +213,7 @@ pub fn link_geometry(
                     });
                 }
                 urdf_rs::Geometry::Cylinder { radius, length } => {
-                    geometry.shapes.push(LinkShape::Cylinder {
+                    geometry.shapes.push(Shape::Cylinder {
                         pose,
                         radius: positive(name, "cylinder radius", *radius)?,
                         half_length: positive(name, "cylinder length", *length)? / 2.0,
@@ -293,15 +221,15 @@ pub fn link_geometry(
                 }
                 urdf_rs::Geometry::Capsule { radius, length } => {
                     let half = positive(name, "capsule length", *length)? / 2.0;
-                    geometry.shapes.push(LinkShape::Capsule(Capsule {
+                    geometry.shapes.push(Shape::Capsule {
                         a: pose * Point3::new(0.0, 0.0, -half),
                         b: pose * Point3::new(0.0, 0.0, half),
                         radius: positive(name, "capsule radius", *radius)?,
-                    }));
+                    });
                 }
                 urdf_rs::Geometry::Sphere { radius } => {
-                    geometry.shapes.push(LinkShape::Sphere {
-                        center: pose * Point3::origin(),
+                    geometry.shapes.push(Shape::Sphere {
+                        centre: pose * Point3::origin(),
                         radius: positive(name, "sphere radius", *radius)?,
                     });
                 }
@@ -328,10 +256,10 @@ pub fn link_geometry(
                     });
                     geometry
                         .shapes
-                        .extend(fit.capsules.into_iter().map(LinkShape::Capsule));
+                        .extend(fit.capsules.iter().map(Capsule::shape));
                     geometry
                         .shapes
-                        .extend(fit.cylinder.map(|c| LinkShape::Cylinder {
+                        .extend(fit.cylinder.map(|c| Shape::Cylinder {
                             pose: c.pose,
                             radius: c.radius,
                             half_length: c.half_length,
@@ -407,11 +335,15 @@ mod tests {
         assert_eq!(arm.meshes[0].triangles, 2);
         // Scaled to 0.2 m and lifted 0.5 m by the origin: every corner is
         // inside the capsules.
-        let capsules: Vec<&Capsule> = arm
+        let capsules: Vec<Capsule> = arm
             .shapes
             .iter()
             .filter_map(|s| match s {
-                LinkShape::Capsule(c) => Some(c),
+                Shape::Capsule { a, b, radius } => Some(Capsule {
+                    a: *a,
+                    b: *b,
+                    radius: *radius,
+                }),
                 _ => None,
             })
             .collect();
@@ -426,9 +358,11 @@ mod tests {
             }
         }
         assert!(capsules.iter().all(|c| c.height() <= 0.2 + 1e-6));
-        assert!(arm.shapes.iter().any(
-            |s| matches!(s, LinkShape::Sphere { radius, .. } if (*radius - 0.05).abs() < 1e-12)
-        ));
+        assert!(
+            arm.shapes.iter().any(
+                |s| matches!(s, Shape::Sphere { radius, .. } if (*radius - 0.05).abs() < 1e-12)
+            )
+        );
         // Relative to the URDF's directory, too.
         let relative = urdf_rs::read_from_string(&urdf("meshes/bar.stl", "")).unwrap();
         assert!(link_geometry(&relative, Some(&dir.join("share").join("my_arm")), &[]).is_ok());

@@ -37,6 +37,15 @@ pub struct Capsule {
 }
 
 impl Capsule {
+    /// The fitted capsule as the one shape type every collision shape is.
+    pub fn shape(&self) -> crate::geometry::shape::Shape {
+        crate::geometry::shape::Shape::Capsule {
+            a: self.a,
+            b: self.b,
+            radius: self.radius,
+        }
+    }
+
     /// Length of the segment (m).
     pub fn height(&self) -> f64 {
         (self.b - self.a).norm()

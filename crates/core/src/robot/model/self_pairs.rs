@@ -15,16 +15,17 @@
 
 use std::collections::HashMap;
 
-use nalgebra::{Isometry3, UnitQuaternion, Vector3};
-use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder, Shape};
+use nalgebra::{Isometry3, Vector3};
+use parry3d_f64::shape::Shape as ParryShape;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::convert::{pose, vec3};
+use crate::geometry::convert::pose;
+use crate::geometry::shape::Shape;
 use crate::robot::model::urdf_chain::{Chain, isometry, random_configuration};
 
-use crate::robot::model::link_geometry::{LinkGeometry, LinkShape};
+use crate::robot::model::link_geometry::LinkGeometry;
 
 /// Why a pair is not checked.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -48,43 +49,11 @@ pub struct DisabledPair {
 }
 
 /// Parry shapes, each with its pose in its link's frame.
-type PlacedShapes = Vec<(Isometry3<f64>, Box<dyn Shape>)>;
+type PlacedShapes = Vec<(Isometry3<f64>, Box<dyn ParryShape>)>;
 
 /// A link's shapes as parry shapes, each with its pose in the link frame.
-fn parry_shapes(shapes: &[LinkShape]) -> PlacedShapes {
-    shapes
-        .iter()
-        .map(|s| -> (Isometry3<f64>, Box<dyn Shape>) {
-            match s {
-                LinkShape::Box { pose, half_extents } => {
-                    (*pose, Box::new(Cuboid::new(vec3(half_extents))))
-                }
-                LinkShape::Cylinder {
-                    pose,
-                    radius,
-                    half_length,
-                } => {
-                    // parry's cylinders stand along y, URDF's along z.
-                    let z_to_y = UnitQuaternion::from_axis_angle(
-                        &Vector3::x_axis(),
-                        std::f64::consts::FRAC_PI_2,
-                    );
-                    (
-                        pose * Isometry3::from_parts(Default::default(), z_to_y),
-                        Box::new(Cylinder::new(*half_length, *radius)),
-                    )
-                }
-                LinkShape::Sphere { center, radius } => (
-                    Isometry3::translation(center.x, center.y, center.z),
-                    Box::new(Ball::new(*radius)),
-                ),
-                LinkShape::Capsule(c) => (
-                    Isometry3::identity(),
-                    Box::new(Capsule::new(vec3(&c.a.coords), vec3(&c.b.coords), c.radius)),
-                ),
-            }
-        })
-        .collect()
+fn parry_shapes(shapes: &[Shape]) -> PlacedShapes {
+    shapes.iter().map(Shape::parry_in_frame).collect()
 }
 
 /// A URDF joint ready to be placed: its origin, its motion per unit of
