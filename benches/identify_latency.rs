@@ -14,7 +14,7 @@ use std::time::Instant;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde_json::{Value, json};
-use treemanip::api::tree_json::TreeJson;
+use treemanip::api::types::TreeJson;
 use treemanip::dataset::Split;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
 use treemanip::eval::plan::percentile;

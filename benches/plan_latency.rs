@@ -17,7 +17,7 @@
 use std::time::Instant;
 
 use serde_json::{Value, json};
-use treemanip::api::tree_json::TreeJson;
+use treemanip::api::types::TreeJson;
 use treemanip::dataset::Split;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
 use treemanip::eval::plan::percentile;

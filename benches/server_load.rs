@@ -16,7 +16,7 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use serde_json::json;
-use treemanip::api::tree_json::TreeJson;
+use treemanip::api::types::TreeJson;
 use treemanip::tree::{ScaParams, generate};
 
 #[allow(dead_code)] // the bench uses part of the tests' helper

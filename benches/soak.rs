@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
-use treemanip::api::tree_json::TreeJson;
+use treemanip::api::types::TreeJson;
 use treemanip::sim::{Push, SimConfig, simulate};
 use treemanip::tree::{ScaParams, generate};
 

@@ -147,7 +147,7 @@ fn a_panicking_request_gets_a_json_500_and_the_server_keeps_serving() {
 #[test]
 fn sigterm_under_load_finishes_admitted_requests_and_refuses_new_ones() {
     let mut server = Server::start(&["--models-dir", MODELS]);
-    let tree = serde_json::to_value(treemanip::api::tree_json::TreeJson::from_tree(
+    let tree = serde_json::to_value(treemanip::api::types::TreeJson::from_tree(
         &treemanip::tree::generate(30, 2, &treemanip::tree::ScaParams::default()).unwrap(),
     ))
     .unwrap();

@@ -9,7 +9,7 @@ use std::process::{Command, Stdio};
 use crate::common::server::Server;
 use nalgebra::{Point3, Vector3};
 use serde_json::{Value, json};
-use treemanip::api::tree_json::TreeJson;
+use treemanip::api::types::TreeJson;
 use treemanip::graph::{batch, encode_forward};
 use treemanip::infer::OnnxModel;
 use treemanip::sim::{Push, SimConfig, simulate};

@@ -6,7 +6,7 @@
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
-use crate::api::tree_json::TreeJson;
+use crate::api::types::TreeJson;
 use crate::api::{AppState, Limits, router};
 use treemanip_core::dataset::Split;
 use treemanip_infer::models::ModelSet;

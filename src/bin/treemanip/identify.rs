@@ -6,7 +6,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Args;
-use treemanip::api::observations::{IdentifyResponse, ProbeJson, identify_config, probes};
+use treemanip::api::observations::{identify_config, probes};
+use treemanip::api::types::{IdentifyResponse, ProbeJson};
 use treemanip::identify::{Noise, identify};
 
 #[derive(Args)]

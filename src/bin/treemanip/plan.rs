@@ -160,7 +160,7 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
         (Some(path), _, _) => {
             let text = std::fs::read_to_string(path)
                 .with_context(|| format!("cannot read {}", path.display()))?;
-            let json: treemanip::api::objective::ObjectiveJson = serde_json::from_str(&text)
+            let json: treemanip::api::types::ObjectiveJson = serde_json::from_str(&text)
                 .with_context(|| format!("{} is not an objective", path.display()))?;
             treemanip::api::objective::objective(Some(&json), None, &tree)
                 .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message))?
@@ -172,7 +172,7 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
         }
         _ => bail!("give `--objective FILE`, or `--node` and `--push` for a target shape"),
     };
-    let limits = treemanip::api::objective::limits(Some(&treemanip::api::objective::LimitsJson {
+    let limits = treemanip::api::objective::limits(Some(&treemanip::api::types::LimitsJson {
         max_stress: args.max_stress,
         max_contact_force: args.max_contact_force,
     }))

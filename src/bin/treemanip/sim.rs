@@ -5,7 +5,7 @@ use clap::{Args, Subcommand};
 use serde::Serialize;
 use treemanip::sim::{ContactModel, Push, SimConfig, SolverReport, simulate};
 
-use treemanip::api::tree_json::TreeJson;
+use treemanip::api::types::TreeJson;
 
 use crate::args::TreePush;
 

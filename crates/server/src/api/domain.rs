@@ -1,22 +1,13 @@
 //! Refusing (or, when asked, flagging) requests outside a model's domain
 //! ([`treemanip_core::model::domain`]).
 
-use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
 use super::error::ApiError;
+use crate::api::types::Warning;
 use treemanip_core::model::domain::Violation;
 use treemanip_core::tree::Tree;
 use treemanip_infer::models::ServedModel;
-
-/// A note on an answer that was given anyway.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Warning {
-    /// `out_of_domain`.
-    pub code: String,
-    pub message: String,
-    pub details: Value,
-}
 
 fn details(v: &Violation, model: &ServedModel) -> Value {
     json!({

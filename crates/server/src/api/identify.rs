@@ -3,33 +3,19 @@
 //! `treemanip_core::identify`; this file only translates.
 
 use axum::extract::State;
-use serde::{Deserialize, Serialize};
 use serde_json::json;
 use treemanip_core::identify::probes::{ProbeRequest, choose_probes};
-use treemanip_core::identify::{Noise, Posterior, Prior, identify as run_identify};
+use treemanip_core::identify::{Posterior, identify as run_identify};
 use treemanip_core::planner::Stance;
-use treemanip_core::sim::{ContactModel, MAX_PUSH_LENGTH};
+use treemanip_core::sim::MAX_PUSH_LENGTH;
 
 use super::AppState;
 use super::error::ApiError;
 use super::json::ApiJson;
-use super::observations::{IdentifyResponse, ProbeJson, identify_config, probes};
-use super::tree_json::TreeJson;
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct IdentifyRequest {
-    /// The tree; its `stiffness`, when given, is the prior mean (else the
-    /// radius formula).
-    pub tree: TreeJson,
-    pub probes: Vec<ProbeJson>,
-    /// Measurement noise (defaults: 3 mm, 5 % of force).
-    #[serde(default)]
-    pub noise: Option<Noise>,
-    /// Prior spreads on ln K_s (defaults: 0.5 per branch, 1.0 overall).
-    #[serde(default)]
-    pub prior: Option<Prior>,
-}
+use super::observations::{identify_config, probes};
+use crate::api::types::{
+    IdentifyRequest, IdentifyResponse, ProbesRequest, ProbesResponse, ProposedProbeJson,
+};
 
 pub async fn identify(
     State(state): State<AppState>,
@@ -52,63 +38,6 @@ pub async fn identify(
         })
         .await?;
     Ok(axum::Json(response))
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ProbesRequest {
-    pub tree: TreeJson,
-    /// Probes already observed: the proposal starts from what they taught.
-    #[serde(default)]
-    pub probes: Vec<ProbeJson>,
-    /// How many probes to propose (1–20, default 5).
-    #[serde(
-        default = "default_count",
-        deserialize_with = "super::json::integer::usize"
-    )]
-    pub count: usize,
-    /// Length of each proposed push (m, default 0.08).
-    #[serde(default = "default_push_length")]
-    pub push_length: f64,
-    #[serde(default)]
-    pub contact: ContactModel,
-    /// Measurement noise (defaults: 3 mm, 5 % of force).
-    #[serde(default)]
-    pub noise: Option<Noise>,
-    /// Prior spreads on ln K_s (defaults: 0.5 per branch, 1.0 overall).
-    #[serde(default)]
-    pub prior: Option<Prior>,
-    /// Where the arm stands (as `/v1/plan` takes it): only pushes it can
-    /// make are proposed. Without it, every push is a candidate.
-    #[serde(default)]
-    pub robot: Option<super::plan::RobotJson>,
-}
-
-fn default_count() -> usize {
-    ProbeRequest::default().count
-}
-
-fn default_push_length() -> f64 {
-    ProbeRequest::default().push_length
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct ProposedProbeJson {
-    pub contact_node: usize,
-    pub push: [f64; 3],
-    pub contact: ContactModel,
-    /// Expected information gain about ln K_s (nats), given the probes
-    /// proposed before it.
-    pub information_gain: f64,
-    /// Variance it is expected to remove from the predicted positions of
-    /// the paper's pushes (m², summed over coordinates, averaged over
-    /// pushes), given the probes proposed before it: what it is chosen by.
-    pub prediction_variance_reduction: f64,
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct ProbesResponse {
-    pub probes: Vec<ProposedProbeJson>,
 }
 
 pub async fn propose(

@@ -20,7 +20,9 @@
 //!   `GET /v2/health/live`, `GET /v2/health/ready`, `GET /v2/models/{name}`,
 //!   `GET /v2/models/{name}/ready`, `POST /v2/models/{name}/infer` ([`v2`]).
 //!
-//! Around them: [`state`] (shared state, admission, the blocking pool),
+//! Every request and response type is in [`types`], one file per endpoint
+//! group. Around the handlers: [`state`] (shared state, admission, the
+//! blocking pool),
 //! [`error`] (the JSON error and its codes), [`json`] and [`validate`]
 //! (request parsing and checks), [`metrics`], [`request_log`], [`shutdown`]
 //! and [`drain`] (graceful shutdown), [`robot_planners`] (one planner per
@@ -48,6 +50,7 @@ pub mod shutdown;
 pub mod simulate;
 pub mod state;
 pub mod tree_json;
+pub mod types;
 pub mod v2;
 pub mod validate;
 pub mod viewer;

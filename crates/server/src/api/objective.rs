@@ -2,14 +2,14 @@
 //! into [`treemanip_core::planner::Objective`] and [`Limits`]. What the
 //! objectives mean is in [`treemanip_core::planner::objective`].
 
-use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::error::ApiError;
-use super::shape::{REGION, ShapeJson, shape};
+use super::shape::{REGION, shape};
 use super::validate::{check_contact, targets_at};
+use crate::api::types::{LimitsJson, LoadsJson, ObjectiveJson};
 use treemanip_core::planner::objective::{
-    DEFAULT_CLEAR_MARGIN, DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS, LoadMargin,
+    DEFAULT_CLEAR_MARGIN, DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS,
 };
 use treemanip_core::planner::{Limits, Objective};
 use treemanip_core::sim::loads::PushLoads;
@@ -19,38 +19,6 @@ use treemanip_core::tree::Tree;
 pub const MAX_REGIONS: usize = 16;
 /// Largest region size (a radius or half extent) and margin accepted (m).
 pub const MAX_REGION_SIZE: f64 = REGION.max;
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum ObjectiveJson {
-    Shape {
-        target_positions: Vec<Vec<f64>>,
-        #[serde(default)]
-        weights: Option<Vec<f64>>,
-    },
-    Clear {
-        regions: Vec<ShapeJson>,
-        #[serde(default)]
-        margin: Option<f64>,
-    },
-    Reach {
-        #[serde(deserialize_with = "super::json::integer::usize")]
-        node: usize,
-        region: ShapeJson,
-    },
-}
-
-/// `limits`: either may be left out for its default.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LimitsJson {
-    /// Pa.
-    #[serde(default)]
-    pub max_stress: Option<f64>,
-    /// N.
-    #[serde(default)]
-    pub max_contact_force: Option<f64>,
-}
 
 /// The request's objective: `objective`, or the `target_positions`
 /// shorthand for a full shape (exactly one of them).
@@ -174,19 +142,6 @@ pub fn limits(json: Option<&LimitsJson>) -> Result<Limits, ApiError> {
             "limits.max_contact_force",
         )?,
     })
-}
-
-/// A push's loads as the response reports them.
-#[derive(Debug, Clone, Serialize)]
-pub struct LoadsJson {
-    /// Peak bending stress (Pa) and its branch.
-    pub peak_stress: f64,
-    pub peak_node: Option<usize>,
-    /// Contact force magnitude (N).
-    pub contact_force: f64,
-    /// 1 − load / limit per limit (> 0: within); absent without limits.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub margin: Option<LoadMargin>,
 }
 
 impl LoadsJson {

@@ -3,36 +3,16 @@
 //! [`treemanip_core::identify::Probe`]s. Every error names the probe and
 //! the field (`details.field` = `probes[k].observed_positions`, ...).
 
-use serde::{Deserialize, Serialize};
 use serde_json::json;
 use treemanip_core::identify::{
-    FitReport, Identification, IdentifyConfig, MAX_PROBES, Noise, Prior, Probe, Rejected, Scale,
-    Status, validate_probes,
+    Identification, IdentifyConfig, MAX_PROBES, Noise, Prior, Probe, validate_probes,
 };
-use treemanip_core::sim::{ContactModel, Push};
+use treemanip_core::sim::Push;
 use treemanip_core::tree::Tree;
 
 use super::error::ApiError;
-use super::tree_json::TreeJson;
 use super::validate::vector3;
-
-/// One observed probe push.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ProbeJson {
-    #[serde(deserialize_with = "super::json::integer::usize")]
-    pub contact_node: usize,
-    /// Gripper displacement T (m).
-    pub push: Vec<f64>,
-    #[serde(default)]
-    pub contact: ContactModel,
-    /// Per node, where it was seen while the push was held (m), or null.
-    pub observed_positions: Vec<Option<Vec<f64>>>,
-    /// The force the gripper applied to the branch (N), as `/v1/simulate`
-    /// reports `contact_force`; a wrist sensor reads the opposite sign.
-    #[serde(default)]
-    pub contact_force: Option<Vec<f64>>,
-}
+use crate::api::types::{IdentifyResponse, ProbeJson, TreeJson};
 
 fn field_error(field: String, message: impl Into<String>) -> ApiError {
     ApiError::invalid_argument(message).with_details(json!({ "field": field }))
@@ -129,24 +109,6 @@ pub fn probes(
         }))
     })?;
     Ok(out)
-}
-
-/// The estimate, per node (null at the root).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct IdentifyResponse {
-    /// Estimated K_s (N·m/rad).
-    pub stiffness: Vec<Option<f64>>,
-    /// 90 % interval of each K_s (N·m/rad).
-    pub interval: Vec<Option<[f64; 2]>>,
-    pub status: Vec<Option<Status>>,
-    /// `absolute` when a contact force fixed the level; `relative`: the
-    /// estimate keeps the prior's level (its mean ln K_s).
-    pub scale: Scale,
-    /// The request's tree with the estimate as its `stiffness`, ready for
-    /// the other endpoints.
-    pub tree: TreeJson,
-    pub fit: FitReport,
-    pub rejected: Vec<Rejected>,
 }
 
 impl From<&Identification> for IdentifyResponse {

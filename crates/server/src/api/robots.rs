@@ -2,52 +2,10 @@
 //! ([`crate::api::robot_planners::RobotPlanners`]).
 
 use axum::extract::State;
-use serde::Serialize;
 use treemanip_core::robot::Arm;
 
 use super::state::AppState;
-
-/// One joint's limits (rad, or m for a prismatic joint; per s, per s²).
-#[derive(Debug, Serialize)]
-pub struct JointLimitsJson {
-    pub name: String,
-    pub kind: &'static str,
-    pub lower: Option<f64>,
-    pub upper: Option<f64>,
-    pub velocity: f64,
-    pub acceleration: f64,
-    pub jerk: Option<f64>,
-}
-
-#[derive(Debug, Serialize)]
-pub struct RobotJsonInfo {
-    pub name: String,
-    pub dof: usize,
-    pub joint_names: Vec<String>,
-    pub limits: Vec<JointLimitsJson>,
-    /// The link the tool frame hangs from (the chain's tip).
-    pub tool_link: String,
-    /// The tool frame in `tool_link`'s frame: [x, y, z] (m) and
-    /// [roll, pitch, yaw] (rad).
-    pub tool_frame: ToolFrameJson,
-    pub base_link: String,
-    /// The home configuration (the default start).
-    pub home: Vec<f64>,
-    /// Whether inverse kinematics is the UR closed form.
-    pub closed_form_ik: bool,
-    pub default: bool,
-}
-
-#[derive(Debug, Serialize)]
-pub struct ToolFrameJson {
-    pub xyz: [f64; 3],
-    pub rpy: [f64; 3],
-}
-
-#[derive(Debug, Serialize)]
-pub struct RobotsResponse {
-    pub robots: Vec<RobotJsonInfo>,
-}
+use crate::api::types::{JointLimitsJson, RobotJsonInfo, RobotsResponse, ToolFrameJson};
 
 impl RobotJsonInfo {
     fn of(arm: &Arm, default: bool) -> Self {

@@ -8,16 +8,20 @@
 
 use axum::extract::{RawQuery, State};
 use nalgebra::{Isometry3, Point3, Vector3};
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 use serde_json::json;
 
 use super::AppState;
 use super::error::ApiError;
 use super::json::ApiJson;
-use super::tree_json::{TreeJson, tree_error};
+use super::tree_json::tree_error;
 use treemanip_core::geometry::shape::Shape;
 use treemanip_core::planner::base::BasePose;
 
+use crate::api::types::{
+    LinkJson, LinkPosesRequest, LinkPosesResponse, LinkShapeJson, TreeJson, TreeResponse,
+    UrdfRequest,
+};
 use treemanip_core::tree::sca::{self, MIN_GENERATED_NODES, ScaError, ScaParams};
 use treemanip_core::tree::urdf::{UrdfError, from_urdf_str};
 
@@ -25,22 +29,6 @@ use treemanip_core::tree::urdf::{UrdfError, from_urdf_str};
 pub const MAX_CONFIGURATIONS: usize = 2048;
 /// Example trees are generated with this many nodes unless asked otherwise.
 pub const DEFAULT_EXAMPLE_NODES: usize = 15;
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct UrdfRequest {
-    /// A tree URDF document as `treemanip` writes it.
-    pub urdf: String,
-}
-
-#[derive(Debug, Clone, Serialize)]
-pub struct TreeResponse {
-    pub tree: TreeJson,
-    pub nodes: usize,
-    /// The generator's seed (examples only).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub seed: Option<u64>,
-}
 
 pub async fn tree_from_urdf(
     State(state): State<AppState>,
@@ -128,76 +116,6 @@ pub async fn example_tree(
         .await
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BaseJson {
-    /// m, tree frame.
-    pub position: Vec<f64>,
-    /// Rotation about the vertical axis (rad).
-    #[serde(default)]
-    pub yaw: f64,
-    /// Tilt of a tilted or hanging mount (rad; see `robot.base_rpy`).
-    #[serde(default)]
-    pub roll: f64,
-    #[serde(default)]
-    pub pitch: f64,
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LinkPosesRequest {
-    /// Which arm (`GET /v1/robots`); default the server's default robot.
-    #[serde(default)]
-    pub robot: Option<String>,
-    /// Where the arm stands (`/v1/plan`'s `base`); default the paper's mount.
-    #[serde(default)]
-    pub base: Option<BaseJson>,
-    /// Joint configurations (rad), e.g. a plan's trajectory.
-    pub configurations: Vec<Vec<f64>>,
-}
-
-/// A collision shape in its link's frame (m).
-#[derive(Debug, Clone, Serialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum ShapeJson {
-    /// The capsule around segment a–b.
-    Capsule {
-        a: [f64; 3],
-        b: [f64; 3],
-        radius: f64,
-    },
-    /// A box: its centre's pose `[x, y, z, qx, qy, qz, qw]` and half extents.
-    Box {
-        pose: [f64; 7],
-        half_extents: [f64; 3],
-    },
-    /// A cylinder along the local z axis of its centre's pose.
-    Cylinder {
-        pose: [f64; 7],
-        radius: f64,
-        half_length: f64,
-    },
-}
-
-#[derive(Debug, Clone, Serialize)]
-pub struct LinkJson {
-    pub name: String,
-    /// Index of the parent link (`null` for the root).
-    pub parent: Option<usize>,
-    pub shapes: Vec<ShapeJson>,
-}
-
-#[derive(Debug, Clone, Serialize)]
-pub struct LinkPosesResponse {
-    pub base: BasePose,
-    /// The arm these are the links of.
-    pub robot: String,
-    pub joint_names: Vec<String>,
-    pub links: Vec<LinkJson>,
-    /// Per configuration, per link: world pose `[x, y, z, qx, qy, qz, qw]`.
-    pub poses: Vec<Vec<[f64; 7]>>,
-}
-
 fn pose7(iso: &Isometry3<f64>) -> [f64; 7] {
     let t = iso.translation.vector;
     let q = iso.rotation.coords; // (i, j, k, w)
@@ -259,7 +177,7 @@ pub async fn link_poses(
                     shapes: shapes
                         .iter()
                         .map(|s| match s {
-                            Shape::Capsule { a, b, radius } => ShapeJson::Capsule {
+                            Shape::Capsule { a, b, radius } => LinkShapeJson::Capsule {
                                 a: xyz(&a.coords),
                                 b: xyz(&b.coords),
                                 radius: *radius,
@@ -267,12 +185,12 @@ pub async fn link_poses(
                             Shape::Sphere {
                                 centre: center,
                                 radius,
-                            } => ShapeJson::Capsule {
+                            } => LinkShapeJson::Capsule {
                                 a: xyz(&center.coords),
                                 b: xyz(&center.coords),
                                 radius: *radius,
                             },
-                            Shape::Box { pose, half_extents } => ShapeJson::Box {
+                            Shape::Box { pose, half_extents } => LinkShapeJson::Box {
                                 pose: pose7(pose),
                                 half_extents: xyz(half_extents),
                             },
@@ -280,7 +198,7 @@ pub async fn link_poses(
                                 pose,
                                 radius,
                                 half_length,
-                            } => ShapeJson::Cylinder {
+                            } => LinkShapeJson::Cylinder {
                                 pose: pose7(pose),
                                 radius: *radius,
                                 half_length: *half_length,

@@ -3,31 +3,11 @@
 //! the vertical, or a capsule; m, rad), checked by one validator into
 //! [`treemanip_core::geometry::shape::Shape`].
 
-use serde::{Deserialize, Serialize};
 use treemanip_core::geometry::shape::Shape;
 
 use super::error::ApiError;
 use super::validate::{MAX_DISTANCE, near_point, vector3};
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum ShapeJson {
-    Sphere {
-        centre: Vec<f64>,
-        radius: f64,
-    },
-    Box {
-        centre: Vec<f64>,
-        half_extents: Vec<f64>,
-        #[serde(default)]
-        yaw: f64,
-    },
-    Capsule {
-        a: Vec<f64>,
-        b: Vec<f64>,
-        radius: f64,
-    },
-}
+use crate::api::types::ShapeJson;
 
 /// How large a shape may be where it is used, and whether a refusal
 /// quotes the value.

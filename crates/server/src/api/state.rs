@@ -218,15 +218,7 @@ impl Drop for CancelOnDrop {
     }
 }
 
-/// Which model answered, and on what.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub struct ModelInfo {
-    pub name: String,
-    /// The git commit the model was trained at.
-    pub version: String,
-    /// `tract` or `onnxruntime`.
-    pub backend: String,
-}
+pub use crate::api::types::ModelInfo;
 
 impl ModelInfo {
     pub fn of(model: &ServedModel, state: &AppState) -> Self {

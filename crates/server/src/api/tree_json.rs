@@ -11,23 +11,12 @@
 //! `stiffness`, K_s = E π r⁴ / (2 ℓ) with the documented E; branch lengths
 //! always come from the positions, and damping is K_s / 10.
 
-use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 use super::error::ApiError;
+use crate::api::types::TreeJson;
 use nalgebra::Point3;
 use treemanip_core::tree::{Tree, TreeError, Wood};
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TreeJson {
-    pub positions: Vec<Vec<f64>>,
-    #[serde(deserialize_with = "super::json::integer::vec_opt_usize")]
-    pub parents: Vec<Option<usize>>,
-    pub radius: Vec<Option<f64>>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stiffness: Option<Vec<Option<f64>>>,
-}
 
 impl TreeJson {
     pub fn from_tree(tree: &Tree) -> Self {

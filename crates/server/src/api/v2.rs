@@ -5,11 +5,11 @@
 //! shaped as [`treemanip_infer::contract`] says. JSON tensor data and Triton's
 //! binary tensor data extension are both read; outputs are JSON.
 
+use super::types::v2::{InferRequest, OutputTensor};
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::HeaderMap;
-use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
 use super::error::ApiError;
@@ -92,43 +92,6 @@ pub async fn model_ready(
 ) -> Result<Json<Value>, ApiError> {
     let m = model(&state, &name)?;
     Ok(Json(json!({ "name": m.name, "ready": true })))
-}
-
-#[derive(Debug, Deserialize)]
-struct InferRequest {
-    #[serde(default)]
-    id: Option<String>,
-    inputs: Vec<InputTensor>,
-    #[serde(default)]
-    outputs: Option<Vec<RequestedOutput>>,
-    #[serde(default)]
-    #[allow(dead_code)] // accepted as the protocol allows; none are used
-    parameters: Option<Value>,
-}
-
-#[derive(Debug, Deserialize)]
-struct InputTensor {
-    name: String,
-    #[serde(deserialize_with = "super::json::integer::vec_usize")]
-    shape: Vec<usize>,
-    datatype: String,
-    #[serde(default)]
-    data: Option<Value>,
-    #[serde(default)]
-    parameters: Option<Value>,
-}
-
-#[derive(Debug, Deserialize)]
-struct RequestedOutput {
-    name: String,
-}
-
-#[derive(Debug, Serialize)]
-struct OutputTensor {
-    name: &'static str,
-    datatype: &'static str,
-    shape: Vec<usize>,
-    data: Vec<f32>,
 }
 
 fn bad(message: impl Into<String>) -> ApiError {

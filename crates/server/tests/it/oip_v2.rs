@@ -12,7 +12,7 @@ use ndarray::{Array2, Array3, Array4};
 use serde_json::{Value, json};
 use treemanip_core::graph::{EDGE_DIM, batch, encode_forward};
 use treemanip_core::tree::{ScaParams, generate};
-use treemanip_server::api::tree_json::TreeJson;
+use treemanip_server::api::types::TreeJson;
 
 use crate::common::server::Server;
 use crate::common::temp_dir;

@@ -4,7 +4,7 @@
 
 use serde_json::{Value, json};
 use treemanip_core::tree::{ScaParams, generate};
-use treemanip_server::api::tree_json::TreeJson;
+use treemanip_server::api::types::TreeJson;
 
 use crate::common::server::Server;
 

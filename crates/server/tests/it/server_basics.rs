@@ -77,7 +77,7 @@ fn simulate_answers_with_the_simulators_ground_truth() {
     assert!(body["solver"]["kkt_residual"].as_f64().unwrap() < 1e-8);
     assert_eq!(body["contact"], "slot");
     // The same push through the library gives the same numbers.
-    let tree = serde_json::from_value::<treemanip_server::api::tree_json::TreeJson>(tree_json())
+    let tree = serde_json::from_value::<treemanip_server::api::types::TreeJson>(tree_json())
         .unwrap()
         .to_tree(64)
         .unwrap();

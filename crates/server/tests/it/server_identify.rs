@@ -8,7 +8,7 @@ use serde_json::{Value, json};
 use treemanip_core::identify::{Noise, Probe, observe};
 use treemanip_core::sim::{ContactModel, Push};
 use treemanip_core::tree::{ScaParams, StiffnessVariation, Tree, generate};
-use treemanip_server::api::tree_json::TreeJson;
+use treemanip_server::api::types::TreeJson;
 
 use crate::common::server::Server;
 

@@ -6,7 +6,7 @@
 use std::process::Command;
 
 use serde_json::{Value, json};
-use treemanip_server::api::tree_json::TreeJson;
+use treemanip_server::api::types::TreeJson;
 
 use crate::common::server::Server;
 

@@ -10,7 +10,7 @@ use treemanip_core::planner::objective::SATISFIED;
 use treemanip_core::sim::loads::PushLoads;
 use treemanip_core::sim::{Push, SimConfig, simulate};
 use treemanip_core::tree::{ScaParams, Tree, generate};
-use treemanip_server::api::tree_json::TreeJson;
+use treemanip_server::api::types::TreeJson;
 
 use crate::common::server::Server;
 

@@ -11,7 +11,7 @@ use treemanip_core::robot::Arm;
 use treemanip_core::tree::sca::{ScaParams, generate};
 use treemanip_core::tree::urdf::to_urdf_string;
 use treemanip_core::tree::{MAX_NODES, Wood};
-use treemanip_server::api::tree_json::TreeJson;
+use treemanip_server::api::types::TreeJson;
 
 use crate::common::server::Server;
 

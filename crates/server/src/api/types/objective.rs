@@ -1,0 +1,51 @@
+//! `/v1/plan`'s `objective`, `limits` and the loads an answer reports.
+
+use serde::{Deserialize, Serialize};
+use treemanip_core::planner::objective::LoadMargin;
+
+use crate::api::types::shape::ShapeJson;
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ObjectiveJson {
+    Shape {
+        target_positions: Vec<Vec<f64>>,
+        #[serde(default)]
+        weights: Option<Vec<f64>>,
+    },
+    Clear {
+        regions: Vec<ShapeJson>,
+        #[serde(default)]
+        margin: Option<f64>,
+    },
+    Reach {
+        #[serde(deserialize_with = "crate::api::json::integer::usize")]
+        node: usize,
+        region: ShapeJson,
+    },
+}
+
+/// `limits`: either may be left out for its default.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsJson {
+    /// Pa.
+    #[serde(default)]
+    pub max_stress: Option<f64>,
+    /// N.
+    #[serde(default)]
+    pub max_contact_force: Option<f64>,
+}
+
+/// A push's loads as the response reports them.
+#[derive(Debug, Clone, Serialize)]
+pub struct LoadsJson {
+    /// Peak bending stress (Pa) and its branch.
+    pub peak_stress: f64,
+    pub peak_node: Option<usize>,
+    /// Contact force magnitude (N).
+    pub contact_force: f64,
+    /// 1 − load / limit per limit (> 0: within); absent without limits.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub margin: Option<LoadMargin>,
+}
