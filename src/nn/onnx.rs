@@ -284,19 +284,23 @@ pub fn export(weights: &GnnWeights, metadata: &[(String, String)]) -> Vec<u8> {
         .affordance_head
         .as_ref()
         .map(|head| g.mlp(&hn, head));
-    let outputs = g.outputs(
-        task,
-        &raw,
-        logits.as_deref(),
-        &weights.output_mean,
-        &weights.output_std,
-    );
-    g.into_model(
-        &format!("treemanip_gnn_{task:?}").to_lowercase(),
-        inputs,
-        outputs,
-        metadata,
-    )
+    let heads = Heads {
+        raw: &raw,
+        logits: logits.as_deref(),
+        mean: &weights.output_mean,
+        std: &weights.output_std,
+    };
+    g.finish(task, "gnn", heads, inputs, metadata)
+}
+
+/// What an architecture's last layers hand to [`Builder::finish`]: the
+/// vector head's raw output, the affordance logits (policies), and the
+/// training split's output mean and standard deviation.
+struct Heads<'a> {
+    raw: &'a str,
+    logits: Option<&'a str>,
+    mean: &'a [f64; 3],
+    std: &'a [f64; 3],
 }
 
 /// The graph's inputs for a task: the same for every architecture.
@@ -355,6 +359,21 @@ impl Builder {
             outputs.push(tensor_value(contract::AFFORDANCE, &["B", "N"]));
         }
         outputs
+    }
+
+    /// The heads de-normalised into the task's outputs, and the model
+    /// named `treemanip_{arch}_{task}`.
+    fn finish(
+        mut self,
+        task: Task,
+        arch: &str,
+        heads: Heads<'_>,
+        inputs: Vec<ValueInfoProto>,
+        metadata: &[(String, String)],
+    ) -> Vec<u8> {
+        let outputs = self.outputs(task, heads.raw, heads.logits, heads.mean, heads.std);
+        let name = format!("treemanip_{arch}_{task:?}").to_lowercase();
+        self.into_model(&name, inputs, outputs, metadata)
     }
 
     fn into_model(
@@ -458,19 +477,13 @@ pub fn export_pointnet(weights: &PointNetWeights, metadata: &[(String, String)])
         .affordance_head
         .as_ref()
         .map(|head| g.linear(&t, head));
-    let outputs = g.outputs(
-        task,
-        &raw,
-        logits.as_deref(),
-        &weights.output_mean,
-        &weights.output_std,
-    );
-    g.into_model(
-        &format!("treemanip_pointnet_{task:?}").to_lowercase(),
-        inputs,
-        outputs,
-        metadata,
-    )
+    let heads = Heads {
+        raw: &raw,
+        logits: logits.as_deref(),
+        mean: &weights.output_mean,
+        std: &weights.output_std,
+    };
+    g.finish(task, "pointnet", heads, inputs, metadata)
 }
 
 /// The same model with `metadata` set: keys already present are replaced,

@@ -53,3 +53,16 @@ pub fn parse_numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
 pub fn parse_vector(s: &str) -> Result<Vector3<f64>, String> {
     parse_numbers::<3>(s).map(Vector3::from)
 }
+
+/// Where an evaluation's episodes and models come from: the test split
+/// collected with `--seed` (as `dataset collect` makes it), the ONNX models
+/// in `--models-dir`.
+#[derive(Args)]
+pub struct EvalData {
+    /// Dataset seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Directory of the ONNX models.
+    #[arg(long, default_value = "models")]
+    pub models_dir: PathBuf,
+}

@@ -7,8 +7,8 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::Args;
 use treemanip::api::observations::{identify_config, probes};
-use treemanip::api::types::{IdentifyResponse, ProbeJson};
-use treemanip::identify::{Noise, identify};
+use treemanip::api::types::{IdentifyResponse, NoiseJson, ProbeJson};
+use treemanip::identify::identify;
 
 #[derive(Args)]
 pub struct IdentifyArgs {
@@ -54,7 +54,7 @@ pub fn identify_cmd(args: IdentifyArgs) -> anyhow::Result<()> {
             );
         }
     }
-    let noise = Noise {
+    let noise = NoiseJson {
         position: args.noise_position,
         force: args.noise_force,
     };

@@ -273,12 +273,8 @@ pub struct EvalPlanArgs {
     /// Episodes per size (test split, as `dataset collect` makes them).
     #[arg(long, default_value_t = 10)]
     per_size: usize,
-    /// Dataset seed.
-    #[arg(long, default_value_t = 7)]
-    seed: u64,
-    /// Directory of the ONNX models.
-    #[arg(long, default_value = "models")]
-    models_dir: PathBuf,
+    #[command(flatten)]
+    data: crate::args::EvalData,
     /// Where to write plan_eval.{md,json} and plan_fig10_*.svg
     /// (plan_eval_ROBOT.* and plan_fig10_ROBOT_* for another arm).
     #[arg(long, default_value = "docs/results")]
@@ -303,12 +299,12 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
         bail!("--per-size must be at least 1");
     }
     let started = Instant::now();
-    let data = test_episodes(&args.sizes.0, args.per_size, args.seed)?;
+    let data = test_episodes(&args.sizes.0, args.per_size, args.data.seed)?;
     let episodes: Vec<_> = data
         .iter()
         .flat_map(|d| d.episodes.iter().map(move |e| (d.n, d.tree_of(e), e)))
         .collect();
-    let set = load_models(&args.models_dir)?;
+    let set = load_models(&args.data.models_dir)?;
     let (policy, forward) = gnns(&set);
     let arm = resolve_robot(&args.robot)?;
     let suffix = if args.robot == treemanip::robot::catalog::BUILT_IN {
@@ -401,7 +397,7 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
     let md = format!(
         "# Planning evaluation\n\n`treemanip eval plan --per-size {} --seed {}{}` on the test split, N = {:?}, {} episodes per setting, one at a time; CPU: {cpu}, {} threads.\nThe target is the episode's final shape; the planner gets the tree and the target only and ranks with the contact policy. Executed error: the planned push run in the simulator, largest node distance to the target; an episode with no plan counts as No Action. Base region: x and y within ±0.5 m of the default base, z 0.1-1.0 m. {robot_note}\n\n{table}",
         args.per_size,
-        args.seed,
+        args.data.seed,
         if suffix.is_empty() {
             String::new()
         } else {

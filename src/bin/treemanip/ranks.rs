@@ -20,12 +20,8 @@ pub struct EvalRanksArgs {
     /// Test episodes (the paper: 100).
     #[arg(long, default_value_t = 100)]
     episodes: usize,
-    /// Dataset seed.
-    #[arg(long, default_value_t = 7)]
-    seed: u64,
-    /// Directory of the ONNX models.
-    #[arg(long, default_value = "models")]
-    models_dir: PathBuf,
+    #[command(flatten)]
+    data: crate::args::EvalData,
     /// Where to write rank_eval.{md,json} and fig8_*.svg.
     #[arg(long, default_value = "docs/results")]
     out: PathBuf,
@@ -37,12 +33,12 @@ pub fn eval_ranks(args: EvalRanksArgs) -> anyhow::Result<()> {
     }
     let started = Instant::now();
     let config = CollectConfig {
-        seed: args.seed,
+        seed: args.data.seed,
         ..CollectConfig::default()
     };
     let (data, _) = collect_size(Split::Test, args.n, args.episodes, &config, &|| {})
         .with_context(|| format!("simulating test episodes of {} nodes", args.n))?;
-    let set = load_models(&args.models_dir)?;
+    let set = load_models(&args.data.models_dir)?;
     let (policy, _) = gnns(&set);
     let bar = crate::progress::bar(data.episodes.len() as u64, "episodes");
     let mut outcomes = Vec::new();
@@ -63,13 +59,13 @@ pub fn eval_ranks(args: EvalRanksArgs) -> anyhow::Result<()> {
     let table = to_markdown(&rows, no_action);
     let md = format!(
         "# Executing every rank of the contact policy (the paper's Fig. 8)\n\n`treemanip eval ranks --n {} --episodes {} --seed {}`: test episodes of {} nodes, target = the episode's final shape; every candidate the policy ranks is pushed with its own action in the simulator (arm ignored). Errors are means over episodes of the largest and of the mean node distance to the target. Figures: `fig8_error_by_rank.svg`, `fig8_affordance_by_rank.svg`.\n\n{table}",
-        args.n, args.episodes, args.seed, args.n
+        args.n, args.episodes, args.data.seed, args.n
     );
     std::fs::write(args.out.join("rank_eval.md"), &md)?;
     std::fs::write(
         args.out.join("rank_eval.json"),
         serde_json::to_string_pretty(&serde_json::json!({
-            "n": args.n, "episodes": args.episodes, "seed": args.seed,
+            "n": args.n, "episodes": args.episodes, "seed": args.data.seed,
             "no_action": { "max_error": no_action.0, "mean_error": no_action.1 },
             "ranks": rows, "outcomes": outcomes,
         }))?,

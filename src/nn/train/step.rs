@@ -88,22 +88,23 @@ pub fn descend(
     (count, layout): (usize, EdgeLayout),
     rate: f64,
 ) -> (f64, ModelWeights) {
-    fn go<M: Net>(
-        weights: &ModelWeights,
-        batch: &Batch,
-        targets: &Targets,
-        (count, layout): (usize, EdgeLayout),
-        rate: f64,
-    ) -> (f64, ModelWeights) {
-        let device = Device::flex().autodiff();
-        let model = M::build(weights, &device);
-        let shards = shards(batch, targets, count);
-        let (value, grads) = gradients(&model, weights, &shards, layout, &device);
-        let model = SgdConfig::new().init().step(rate, model, grads);
-        (value, model.weights(weights))
-    }
+    let shards = shards(batch, targets, count);
     match weights.arch() {
-        Arch::Gnn => go::<TrainGnn>(weights, batch, targets, (count, layout), rate),
-        Arch::PointNet => go::<TrainPointNet>(weights, batch, targets, (count, layout), rate),
+        Arch::Gnn => descend_with::<TrainGnn>(weights, &shards, layout, rate),
+        Arch::PointNet => descend_with::<TrainPointNet>(weights, &shards, layout, rate),
     }
+}
+
+/// [`descend`] for one architecture.
+fn descend_with<M: Net>(
+    weights: &ModelWeights,
+    shards: &[(Batch, Targets)],
+    layout: EdgeLayout,
+    rate: f64,
+) -> (f64, ModelWeights) {
+    let device = Device::flex().autodiff();
+    let model = M::build(weights, &device);
+    let (value, grads) = gradients(&model, weights, shards, layout, &device);
+    let model = SgdConfig::new().init().step(rate, model, grads);
+    (value, model.weights(weights))
 }

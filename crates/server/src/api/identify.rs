@@ -60,7 +60,7 @@ pub async fn propose(
     let ask = ProbeRequest {
         count: request.count,
         push_length: length,
-        contact: request.contact,
+        contact: request.contact.into(),
     };
     let robot_name = request.robot.as_ref().and_then(|r| r.name.as_deref());
     let planner = state.robots.get(robot_name, "robot.name")?;
@@ -97,7 +97,7 @@ pub async fn propose(
                     .map(|c| ProposedProbeJson {
                         contact_node: c.push.node,
                         push: [c.push.vector.x, c.push.vector.y, c.push.vector.z],
-                        contact: c.contact,
+                        contact: c.contact.into(),
                         information_gain: c.information_gain,
                         prediction_variance_reduction: c.prediction_variance_reduction,
                     })

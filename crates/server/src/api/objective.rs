@@ -7,12 +7,11 @@ use serde_json::json;
 use super::error::ApiError;
 use super::shape::{REGION, shape};
 use super::validate::{check_contact, targets_at};
-use crate::api::types::{LimitsJson, LoadsJson, ObjectiveJson};
+use crate::api::types::{LimitsJson, ObjectiveJson};
 use treemanip_core::planner::objective::{
     DEFAULT_CLEAR_MARGIN, DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS,
 };
 use treemanip_core::planner::{Limits, Objective};
-use treemanip_core::sim::loads::PushLoads;
 use treemanip_core::tree::Tree;
 
 /// Regions a `clear` objective may list.
@@ -142,15 +141,4 @@ pub fn limits(json: Option<&LimitsJson>) -> Result<Limits, ApiError> {
             "limits.max_contact_force",
         )?,
     })
-}
-
-impl LoadsJson {
-    pub fn new(loads: &PushLoads, limits: Option<&Limits>) -> Self {
-        Self {
-            peak_stress: loads.peak_stress,
-            peak_node: loads.peak_node,
-            contact_force: loads.contact_force,
-            margin: limits.map(|l| l.margin(loads)),
-        }
-    }
 }

@@ -5,14 +5,14 @@
 
 use serde_json::json;
 use treemanip_core::identify::{
-    Identification, IdentifyConfig, MAX_PROBES, Noise, Prior, Probe, validate_probes,
+    Identification, IdentifyConfig, MAX_PROBES, Probe, validate_probes,
 };
 use treemanip_core::sim::Push;
 use treemanip_core::tree::Tree;
 
 use super::error::ApiError;
 use super::validate::vector3;
-use crate::api::types::{IdentifyResponse, ProbeJson, TreeJson};
+use crate::api::types::{IdentifyResponse, NoiseJson, PriorJson, ProbeJson, TreeJson};
 
 fn field_error(field: String, message: impl Into<String>) -> ApiError {
     ApiError::invalid_argument(message).with_details(json!({ "field": field }))
@@ -21,8 +21,8 @@ fn field_error(field: String, message: impl Into<String>) -> ApiError {
 /// The identification settings, checked: noise and spreads positive and
 /// finite, within what a sensor and a prior can mean.
 pub fn identify_config(
-    noise: Option<Noise>,
-    prior: Option<Prior>,
+    noise: Option<NoiseJson>,
+    prior: Option<PriorJson>,
     field: &str,
 ) -> Result<IdentifyConfig, ApiError> {
     let mut config = IdentifyConfig::default();
@@ -40,7 +40,7 @@ pub fn identify_config(
                 "`noise.force` (relative) must be in (0, 1]",
             ));
         }
-        config.noise = noise;
+        config.noise = noise.into();
     }
     if let Some(prior) = prior {
         for (name, v) in [
@@ -54,7 +54,7 @@ pub fn identify_config(
                 ));
             }
         }
-        config.prior = prior;
+        config.prior = prior.into();
     }
     Ok(config)
 }
@@ -97,7 +97,7 @@ pub fn probes(
                 node: p.contact_node,
                 vector: push,
             },
-            contact: p.contact,
+            contact: p.contact.into(),
             observed,
             contact_force,
         });
@@ -116,11 +116,11 @@ impl From<&Identification> for IdentifyResponse {
         Self {
             stiffness: id.stiffness.clone(),
             interval: id.interval.iter().map(|i| i.map(|(a, b)| [a, b])).collect(),
-            status: id.status.clone(),
-            scale: id.scale,
+            status: id.status.iter().map(|s| s.map(Into::into)).collect(),
+            scale: id.scale.into(),
             tree: TreeJson::from_tree(&id.tree),
-            fit: id.fit.clone(),
-            rejected: id.rejected.clone(),
+            fit: (&id.fit).into(),
+            rejected: id.rejected.iter().map(Into::into).collect(),
         }
     }
 }

@@ -16,7 +16,8 @@ use super::shape::{OBSTACLE, shape};
 use super::state::ModelInfo;
 use super::validate::{joints, near_point, within_turn};
 use crate::api::types::{
-    IdentifyResponse, LoadsJson, PlanRequest, PlanResponse, RobotJson, ShapeJson, Warning,
+    AttemptJson, ClearanceJson, IdentifyResponse, JointTrajectoryJson, LimitsAnswer, LoadsJson,
+    PlanRequest, PlanResponse, RobotJson, ShapeJson, TimedPointJson, Warning,
 };
 use treemanip_core::geometry::shape::Shape;
 use treemanip_core::graph::Task;
@@ -173,7 +174,7 @@ pub async fn plan(
     ApiJson(request): ApiJson<PlanRequest>,
 ) -> Result<axum::Json<PlanResponse>, ApiError> {
     let policy = state.model_for(Task::Policy)?;
-    let forward = match request.strategy {
+    let forward = match Strategy::from(request.strategy) {
         Strategy::Model => Some(state.model_for(Task::Forward)?),
         _ => None,
     };
@@ -207,7 +208,7 @@ pub async fn plan(
         .map(|q| joints(q, "robot.start", planner.robot()))
         .transpose()?;
     query.obstacles = obstacles(&request.obstacles)?;
-    query.strategy = request.strategy;
+    query.strategy = request.strategy.into();
     query.budget = Duration::from_secs_f64(budget_ms / 1e3);
     let nodes = query.tree.len().saturating_sub(1).max(1);
     query.max_candidates = count(
@@ -250,12 +251,10 @@ fn response(
     model: ModelInfo,
     warnings: Vec<Warning>,
 ) -> PlanResponse {
-    for a in &plan.attempts {
-        let outcome = serde_json::to_value(a.outcome)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_owned))
-            .unwrap_or_default();
-        ::metrics::counter!("treemanip_plan_attempts_total", "outcome" => outcome).increment(1);
+    let attempts: Vec<AttemptJson> = plan.attempts.iter().map(AttemptJson::from).collect();
+    for a in &attempts {
+        ::metrics::counter!("treemanip_plan_attempts_total", "outcome" => a.outcome.name())
+            .increment(1);
     }
     let status = if plan.plan.is_some() {
         "planned"
@@ -267,22 +266,22 @@ fn response(
     let limits = plan.limits;
     PlanResponse {
         objective: plan.objective,
-        clearance: plan.clearance,
+        clearance: plan.clearance.map(ClearanceJson::from),
         predicted_loads: plan
             .predicted_loads
             .map(|l| LoadsJson::new(&l, limits.as_ref())),
         simulated_loads: plan
             .simulated_loads
             .map(|l| LoadsJson::new(&l, limits.as_ref())),
-        limits,
+        limits: limits.map(LimitsAnswer::from),
         status,
-        strategy: plan.strategy,
+        strategy: plan.strategy.into(),
         node: chosen.as_ref().map(|p| p.node),
         rank: chosen.as_ref().map(|p| p.rank),
         push: chosen.as_ref().map(|p| [p.push.x, p.push.y, p.push.z]),
         predicted_error: plan.predicted_error,
         no_action_error: plan.no_action_error,
-        base: plan.base,
+        base: plan.base.into(),
         start: plan.start.to_vec(),
         start_chosen: plan.start_chosen,
         robot: arm.name().to_owned(),
@@ -299,10 +298,12 @@ fn response(
         joint_trajectory: chosen
             .as_ref()
             .and_then(|p| p.execution.as_ref())
-            .map(|e| e.joint_trajectory.clone()),
-        trajectory: chosen.map(|p| p.trajectory).unwrap_or_default(),
+            .map(|e| JointTrajectoryJson::from(&e.joint_trajectory)),
+        trajectory: chosen
+            .map(|p| p.trajectory.iter().map(TimedPointJson::from).collect())
+            .unwrap_or_default(),
         evaluations: plan.evaluations,
-        attempts: plan.attempts,
+        attempts,
         total_ms: plan.total_ms,
         model,
         warnings,

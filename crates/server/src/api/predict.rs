@@ -141,7 +141,7 @@ pub async fn policy(
         .run_model_work("/v1/policy", timeout, move |control| {
             let candidates = rank_candidates(&model, &tree, &targets, &control)?;
             Ok(PolicyResponse {
-                candidates,
+                candidates: candidates.iter().map(Into::into).collect(),
                 model: info,
                 warnings,
             })

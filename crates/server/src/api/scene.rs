@@ -212,7 +212,7 @@ pub async fn link_poses(
                 .map(|q| robot.link_poses(q).iter().map(pose7).collect())
                 .collect();
             Ok(axum::Json(LinkPosesResponse {
-                base,
+                base: base.into(),
                 robot: robot.name().to_owned(),
                 joint_names: robot.joint_names().map(str::to_owned).collect(),
                 links,

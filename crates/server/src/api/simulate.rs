@@ -28,7 +28,7 @@ pub async fn simulate(
         vector: nalgebra::Vector3::new(x, y, z),
     };
     let config = SimConfig {
-        contact: request.contact,
+        contact: request.contact.into(),
         ..SimConfig::default()
     };
     let contact = request.contact;
@@ -54,8 +54,8 @@ pub async fn simulate(
                 branch_twist: loads.twisting_moment,
                 branch_stress: loads.bending_stress,
                 wood_modulus: loads.implied_modulus,
-                peak_stress: loads.peak_stress,
-                solver: outcome.report,
+                peak_stress: loads.peak_stress.map(Into::into),
+                solver: (&outcome.report).into(),
             })
         })
         .await?;

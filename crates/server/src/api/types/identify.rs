@@ -3,9 +3,9 @@
 use serde::{Deserialize, Serialize};
 use treemanip_core::identify::probes::ProbeRequest;
 use treemanip_core::identify::{FitReport, Noise, Prior, Rejected, Scale, Status};
-use treemanip_core::sim::ContactModel;
 
 use crate::api::types::robots::RobotJson;
+use crate::api::types::simulate::ContactJson;
 use crate::api::types::tree::TreeJson;
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -17,10 +17,10 @@ pub struct IdentifyRequest {
     pub probes: Vec<ProbeJson>,
     /// Measurement noise (defaults: 3 mm, 5 % of force).
     #[serde(default)]
-    pub noise: Option<Noise>,
-    /// Prior spreads on ln K_s (defaults: 0.5 per branch, 1.0 overall).
+    pub noise: Option<NoiseJson>,
+    /// Prior spreads on ln K_s (defaults: 0.4 per branch, 1.0 overall).
     #[serde(default)]
-    pub prior: Option<Prior>,
+    pub prior: Option<PriorJson>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -40,13 +40,13 @@ pub struct ProbesRequest {
     #[serde(default = "default_push_length")]
     pub push_length: f64,
     #[serde(default)]
-    pub contact: ContactModel,
+    pub contact: ContactJson,
     /// Measurement noise (defaults: 3 mm, 5 % of force).
     #[serde(default)]
-    pub noise: Option<Noise>,
-    /// Prior spreads on ln K_s (defaults: 0.5 per branch, 1.0 overall).
+    pub noise: Option<NoiseJson>,
+    /// Prior spreads on ln K_s (defaults: 0.4 per branch, 1.0 overall).
     #[serde(default)]
-    pub prior: Option<Prior>,
+    pub prior: Option<PriorJson>,
     /// Where the arm stands (as `/v1/plan` takes it): only pushes it can
     /// make are proposed. Without it, every push is a candidate.
     #[serde(default)]
@@ -57,7 +57,7 @@ pub struct ProbesRequest {
 pub struct ProposedProbeJson {
     pub contact_node: usize,
     pub push: [f64; 3],
-    pub contact: ContactModel,
+    pub contact: ContactJson,
     /// Expected information gain about ln K_s (nats), given the probes
     /// proposed before it.
     pub information_gain: f64,
@@ -81,7 +81,7 @@ pub struct ProbeJson {
     /// Gripper displacement T (m).
     pub push: Vec<f64>,
     #[serde(default)]
-    pub contact: ContactModel,
+    pub contact: ContactJson,
     /// Per node, where it was seen while the push was held (m), or null.
     pub observed_positions: Vec<Option<Vec<f64>>>,
     /// The force the gripper applied to the branch (N), as `/v1/simulate`
@@ -97,15 +97,15 @@ pub struct IdentifyResponse {
     pub stiffness: Vec<Option<f64>>,
     /// 90 % interval of each K_s (N·m/rad).
     pub interval: Vec<Option<[f64; 2]>>,
-    pub status: Vec<Option<Status>>,
+    pub status: Vec<Option<StatusJson>>,
     /// `absolute` when a contact force fixed the level; `relative`: the
     /// estimate keeps the prior's level (its mean ln K_s).
-    pub scale: Scale,
+    pub scale: ScaleJson,
     /// The request's tree with the estimate as its `stiffness`, ready for
     /// the other endpoints.
     pub tree: TreeJson,
-    pub fit: FitReport,
-    pub rejected: Vec<Rejected>,
+    pub fit: FitReportJson,
+    pub rejected: Vec<RejectedJson>,
 }
 
 fn default_count() -> usize {
@@ -114,4 +114,141 @@ fn default_count() -> usize {
 
 fn default_push_length() -> f64 {
     ProbeRequest::default().push_length
+}
+
+/// Measurement noise, one standard deviation: `position` per coordinate
+/// of an observed node (m, default 3 mm), `force` relative to a measured
+/// contact force (default 5 %).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseJson {
+    #[serde(default = "default_noise_position")]
+    pub position: f64,
+    #[serde(default = "default_noise_force")]
+    pub force: f64,
+}
+
+fn default_noise_position() -> f64 {
+    Noise::default().position
+}
+
+fn default_noise_force() -> f64 {
+    Noise::default().force
+}
+
+impl From<NoiseJson> for Noise {
+    fn from(n: NoiseJson) -> Self {
+        Noise {
+            position: n.position,
+            force: n.force,
+        }
+    }
+}
+
+/// The prior's spreads on ln K_s: each branch apart (default 0.4) and all
+/// branches together (default 1.0).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PriorJson {
+    #[serde(default = "default_branch_log_sigma")]
+    pub branch_log_sigma: f64,
+    #[serde(default = "default_global_log_sigma")]
+    pub global_log_sigma: f64,
+}
+
+fn default_branch_log_sigma() -> f64 {
+    Prior::default().branch_log_sigma
+}
+
+fn default_global_log_sigma() -> f64 {
+    Prior::default().global_log_sigma
+}
+
+impl From<PriorJson> for Prior {
+    fn from(p: PriorJson) -> Self {
+        Prior {
+            branch_log_sigma: p.branch_log_sigma,
+            global_log_sigma: p.global_log_sigma,
+        }
+    }
+}
+
+/// How well a branch's stiffness is known after the fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StatusJson {
+    Identified,
+    Weak,
+    Unobserved,
+}
+
+impl From<Status> for StatusJson {
+    fn from(s: Status) -> Self {
+        match s {
+            Status::Identified => StatusJson::Identified,
+            Status::Weak => StatusJson::Weak,
+            Status::Unobserved => StatusJson::Unobserved,
+        }
+    }
+}
+
+/// Whether the estimate's overall level was measured (`absolute`, with a
+/// force) or kept at the prior's (`relative`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ScaleJson {
+    Absolute,
+    Relative,
+}
+
+impl From<Scale> for ScaleJson {
+    fn from(s: Scale) -> Self {
+        match s {
+            Scale::Absolute => ScaleJson::Absolute,
+            Scale::Relative => ScaleJson::Relative,
+        }
+    }
+}
+
+/// A probe left out of the fit, and why.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RejectedJson {
+    pub probe: usize,
+    pub reason: String,
+    pub message: String,
+}
+
+impl From<&Rejected> for RejectedJson {
+    fn from(r: &Rejected) -> Self {
+        Self {
+            probe: r.probe,
+            reason: r.reason.clone(),
+            message: r.message.clone(),
+        }
+    }
+}
+
+/// How the fit went: iterations, convergence, the position residuals (m)
+/// at the estimate and at the prior, observations and simulations used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitReportJson {
+    pub iterations: usize,
+    pub converged: bool,
+    pub position_rms: f64,
+    pub prior_position_rms: f64,
+    pub observations: usize,
+    pub simulations: usize,
+}
+
+impl From<&FitReport> for FitReportJson {
+    fn from(f: &FitReport) -> Self {
+        Self {
+            iterations: f.iterations,
+            converged: f.converged,
+            position_rms: f.position_rms,
+            prior_position_rms: f.prior_position_rms,
+            observations: f.observations,
+            simulations: f.simulations,
+        }
+    }
 }

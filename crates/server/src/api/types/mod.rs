@@ -3,14 +3,15 @@
 //! `http/types.rs`). Handlers in [`crate::api`] turn them into core types
 //! and back; `openapi.yaml` describes them.
 //!
-//! Still core types on the wire (to be mirrored here): `Strategy`,
-//! `Attempt`, `BasePose`, `TimedPoint`, `Candidate`, `Noise`, `Prior`,
-//! `ContactModel`, the identification report (`Status`, `Scale`,
-//! `FitReport`, `Rejected`), `LoadMargin`, `PeakStress`, `SolverReport`.
+//! No core type is serialized as an answer or read as a request: each
+//! has a mirror here (`StrategyJson`, `AttemptJson`, `ContactJson`, ...),
+//! converted with `From` at the edge, so a change in the library never
+//! changes the wire by itself.
 
 pub mod domain;
 pub mod identify;
 pub mod models;
+pub mod motion;
 pub mod objective;
 pub mod plan;
 pub mod predict;
@@ -23,9 +24,14 @@ pub mod v2;
 
 pub use domain::Warning;
 pub use identify::{
-    IdentifyRequest, IdentifyResponse, ProbeJson, ProbesRequest, ProbesResponse, ProposedProbeJson,
+    IdentifyRequest, IdentifyResponse, NoiseJson, PriorJson, ProbeJson, ProbesRequest,
+    ProbesResponse, ProposedProbeJson,
 };
 pub use models::ModelInfo;
+pub use motion::{
+    AttemptJson, BasePoseJson, ClearanceJson, JointTrajectoryJson, LimitsAnswer, OutcomeJson,
+    StrategyJson, TimedPointJson,
+};
 pub use objective::{LimitsJson, LoadsJson, ObjectiveJson};
 pub use plan::{PlanRequest, PlanResponse};
 pub use predict::{ForwardRequest, ForwardResponse, PolicyRequest, PolicyResponse};
@@ -37,5 +43,5 @@ pub use scene::{
     UrdfRequest,
 };
 pub use shape::ShapeJson;
-pub use simulate::{SimulateRequest, SimulateResponse};
+pub use simulate::{ContactJson, SimulateRequest, SimulateResponse};
 pub use tree::TreeJson;

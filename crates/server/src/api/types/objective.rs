@@ -1,7 +1,8 @@
 //! `/v1/plan`'s `objective`, `limits` and the loads an answer reports.
 
 use serde::{Deserialize, Serialize};
-use treemanip_core::planner::objective::LoadMargin;
+use treemanip_core::planner::Limits;
+use treemanip_core::sim::loads::PushLoads;
 
 use crate::api::types::shape::ShapeJson;
 
@@ -47,5 +48,30 @@ pub struct LoadsJson {
     pub contact_force: f64,
     /// 1 − load / limit per limit (> 0: within); absent without limits.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub margin: Option<LoadMargin>,
+    pub margin: Option<LoadMarginJson>,
+}
+
+impl LoadsJson {
+    pub fn new(loads: &PushLoads, limits: Option<&Limits>) -> Self {
+        Self {
+            peak_stress: loads.peak_stress,
+            peak_node: loads.peak_node,
+            contact_force: loads.contact_force,
+            margin: limits.map(|l| {
+                let m = l.margin(loads);
+                LoadMarginJson {
+                    stress: m.stress,
+                    contact_force: m.contact_force,
+                }
+            }),
+        }
+    }
+}
+
+/// How a push's loads compare with the limits: 1 − load / limit (> 0:
+/// within the limit).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LoadMarginJson {
+    pub stress: f64,
+    pub contact_force: f64,
 }

@@ -1,14 +1,14 @@
 //! `/v1/plan`: the request (robot, stance, obstacles, timing) and the answer.
 
 use serde::{Deserialize, Serialize};
-use treemanip_core::identify::Noise;
-use treemanip_core::planner::base::BasePose;
-use treemanip_core::planner::{Attempt, Strategy};
-use treemanip_core::robot::motion::trajectory::TimedPoint;
 
 use crate::api::types::domain::Warning;
-use crate::api::types::identify::{IdentifyResponse, ProbeJson};
+use crate::api::types::identify::{IdentifyResponse, NoiseJson, ProbeJson};
 use crate::api::types::models::ModelInfo;
+use crate::api::types::motion::{
+    AttemptJson, BasePoseJson, ClearanceJson, JointTrajectoryJson, LimitsAnswer, StrategyJson,
+    TimedPointJson,
+};
 use crate::api::types::objective::{LimitsJson, LoadsJson, ObjectiveJson};
 use crate::api::types::robots::RobotJson;
 use crate::api::types::shape::ShapeJson;
@@ -32,7 +32,7 @@ pub struct PlanRequest {
     #[serde(default)]
     pub obstacles: Vec<ShapeJson>,
     #[serde(default)]
-    pub strategy: Strategy,
+    pub strategy: StrategyJson,
     /// Planning budget (ms); default and maximum are server limits.
     #[serde(default)]
     pub budget_ms: Option<f64>,
@@ -56,7 +56,7 @@ pub struct PlanRequest {
     pub observations: Vec<ProbeJson>,
     /// Noise of `observations` (defaults: 3 mm, 5 % of force).
     #[serde(default)]
-    pub observation_noise: Option<Noise>,
+    pub observation_noise: Option<NoiseJson>,
     /// Seconds the push is held before the release (default 2).
     #[serde(default)]
     pub hold_s: Option<f64>,
@@ -74,7 +74,7 @@ pub struct PlanRequest {
 pub struct PlanResponse {
     /// `planned` or `no_plan`.
     pub status: &'static str,
-    pub strategy: Strategy,
+    pub strategy: StrategyJson,
     pub node: Option<usize>,
     pub rank: Option<usize>,
     pub push: Option<[f64; 3]>,
@@ -94,11 +94,11 @@ pub struct PlanResponse {
     /// included: it reports, never enforces).
     pub simulated_loads: Option<LoadsJson>,
     /// The limits enforced (`null` for `paper`).
-    pub limits: Option<treemanip_core::planner::Limits>,
+    pub limits: Option<LimitsAnswer>,
     /// For `clear`: the clearance the push reaches between branches and
     /// regions (m, negative: overlapping), predicted and simulated.
-    pub clearance: Option<treemanip_core::planner::Clearance>,
-    pub base: BasePose,
+    pub clearance: Option<ClearanceJson>,
+    pub base: BasePoseJson,
     /// The configuration the trajectory starts from.
     pub start: Vec<f64>,
     /// Whether the planner chose `start` (base region, no start given).
@@ -106,18 +106,18 @@ pub struct PlanResponse {
     /// The arm that planned.
     pub robot: String,
     pub joint_names: Vec<String>,
-    pub trajectory: Vec<TimedPoint>,
+    pub trajectory: Vec<TimedPointJson>,
     pub push_start_index: Option<usize>,
     /// The whole held push (approach, push, hold, release, retreat) as a
     /// ROS 2 `trajectory_msgs/JointTrajectory`, velocity-continuous and
     /// within the joints' limits.
-    pub joint_trajectory: Option<treemanip_core::robot::motion::ros::JointTrajectory>,
+    pub joint_trajectory: Option<JointTrajectoryJson>,
     /// Indices of `joint_trajectory`'s first and last point of the
     /// straight push.
     pub push_start_point: Option<usize>,
     pub push_end_point: Option<usize>,
     pub evaluations: usize,
-    pub attempts: Vec<Attempt>,
+    pub attempts: Vec<AttemptJson>,
     pub total_ms: f64,
     pub model: ModelInfo,
     #[serde(skip_serializing_if = "Vec::is_empty")]

@@ -62,8 +62,30 @@ pub struct PolicyRequest {
 #[derive(Debug, Clone, Serialize)]
 pub struct PolicyResponse {
     /// Every non-root node, by affordance, descending.
-    pub candidates: Vec<Candidate>,
+    pub candidates: Vec<CandidateJson>,
     pub model: ModelInfo,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<Warning>,
+}
+
+/// One node to push and how, from the contact policy: its share of the
+/// affordance over the pushable nodes, the push T (m), its rank (1 = most
+/// promising).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CandidateJson {
+    pub node: usize,
+    pub affordance: f64,
+    pub push: [f64; 3],
+    pub rank: usize,
+}
+
+impl From<&Candidate> for CandidateJson {
+    fn from(c: &Candidate) -> Self {
+        Self {
+            node: c.node,
+            affordance: c.affordance,
+            push: c.push,
+            rank: c.rank,
+        }
+    }
 }

@@ -1,7 +1,7 @@
 //! `/v1/trees/urdf`, `/v1/trees/example` and `/v1/robot/link-poses`.
 
+use crate::api::types::motion::BasePoseJson;
 use serde::{Deserialize, Serialize};
-use treemanip_core::planner::base::BasePose;
 
 use crate::api::types::tree::TreeJson;
 
@@ -82,7 +82,7 @@ pub struct LinkJson {
 
 #[derive(Debug, Clone, Serialize)]
 pub struct LinkPosesResponse {
-    pub base: BasePose,
+    pub base: BasePoseJson,
     /// The arm these are the links of.
     pub robot: String,
     pub joint_names: Vec<String>,

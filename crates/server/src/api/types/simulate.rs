@@ -1,6 +1,7 @@
 //! `/v1/simulate`.
 
 use serde::{Deserialize, Serialize};
+use treemanip_core::sim::contact::Hold;
 use treemanip_core::sim::loads::PeakStress;
 use treemanip_core::sim::{ContactModel, SolverReport};
 
@@ -16,7 +17,7 @@ pub struct SimulateRequest {
     pub push: Vec<f64>,
     /// `slot` (default) or `pinned`.
     #[serde(default)]
-    pub contact: ContactModel,
+    pub contact: ContactJson,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -25,7 +26,7 @@ pub struct SimulateResponse {
     pub final_positions: Vec<[f64; 3]>,
     /// p′ − p per node (m).
     pub displacements: Vec<[f64; 3]>,
-    pub contact: ContactModel,
+    pub contact: ContactJson,
     /// The force the gripper applies to the branch (N); a wrist
     /// force/torque sensor reads the opposite. The same as
     /// `solver.contact_force`.
@@ -41,6 +42,98 @@ pub struct SimulateResponse {
     /// (Pa): 5 GPa with the default stiffness, else the caller's.
     pub wood_modulus: Vec<Option<f64>>,
     /// The largest bending stress and its node (null: nothing bends).
-    pub peak_stress: Option<PeakStress>,
-    pub solver: SolverReport,
+    pub peak_stress: Option<PeakStressJson>,
+    pub solver: SolverReportJson,
+}
+
+/// How the gripper holds the branch: `slot` (it may slide along the
+/// slot; the default) or `pinned` (the node moves exactly by the push).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ContactJson {
+    #[default]
+    Slot,
+    Pinned,
+}
+
+impl From<ContactJson> for ContactModel {
+    fn from(c: ContactJson) -> Self {
+        match c {
+            ContactJson::Slot => ContactModel::Slot,
+            ContactJson::Pinned => ContactModel::Pinned,
+        }
+    }
+}
+
+impl From<ContactModel> for ContactJson {
+    fn from(c: ContactModel) -> Self {
+        match c {
+            ContactModel::Slot => ContactJson::Slot,
+            ContactModel::Pinned => ContactJson::Pinned,
+        }
+    }
+}
+
+/// The most stressed branch: its bending stress (Pa) and node.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PeakStressJson {
+    pub stress: f64,
+    pub node: usize,
+}
+
+impl From<PeakStress> for PeakStressJson {
+    fn from(p: PeakStress) -> Self {
+        Self {
+            stress: p.stress,
+            node: p.node,
+        }
+    }
+}
+
+/// What the gripper ended up holding: the branch in its slot (`on_axis`)
+/// or the node itself (`at_node`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HoldJson {
+    OnAxis,
+    AtNode,
+}
+
+impl From<Hold> for HoldJson {
+    fn from(h: Hold) -> Self {
+        match h {
+            Hold::OnAxis => HoldJson::OnAxis,
+            Hold::AtNode => HoldJson::AtNode,
+        }
+    }
+}
+
+/// How the solve went: iterations, the constraint (m) and relative KKT
+/// residuals, the elastic energy (J), the hold, where along the branch
+/// it holds (m), the contact force (N) and the largest joint angle (rad).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SolverReportJson {
+    pub iterations: usize,
+    pub constraint_residual: f64,
+    pub kkt_residual: f64,
+    pub energy: f64,
+    pub hold: HoldJson,
+    pub slide: Option<f64>,
+    pub contact_force: [f64; 3],
+    pub max_joint_angle: f64,
+}
+
+impl From<&SolverReport> for SolverReportJson {
+    fn from(r: &SolverReport) -> Self {
+        Self {
+            iterations: r.iterations,
+            constraint_residual: r.constraint_residual,
+            kkt_residual: r.kkt_residual,
+            energy: r.energy,
+            hold: r.hold.into(),
+            slide: r.slide,
+            contact_force: r.contact_force,
+            max_joint_angle: r.max_joint_angle,
+        }
+    }
 }
