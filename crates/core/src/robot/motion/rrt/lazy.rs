@@ -167,13 +167,7 @@ pub(super) fn rrt_star(
     let mut goal_links: Vec<(usize, usize)> = Vec::new();
     // The best verified path: (cost, waypoints ending at the goal, goal).
     let mut best: Option<(f64, Vec<Config>, usize)> = None;
-    let mut stats = RrtStats {
-        iterations: 0,
-        nodes: 1,
-        first_solution: None,
-        cost_history: Vec::new(),
-        elapsed_ms: 0.0,
-    };
+    let mut stats = RrtStats::start();
     goal_links.extend(direct_link(start, &goals, validator).map(|g| (0, g)));
     let lower_bound = cost_lower_bound(start, &goals);
     loop {

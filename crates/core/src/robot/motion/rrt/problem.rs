@@ -68,6 +68,19 @@ pub struct RrtStats {
     pub elapsed_ms: f64,
 }
 
+impl RrtStats {
+    /// A search that has not begun: the start node alone.
+    pub(super) fn start() -> Self {
+        Self {
+            iterations: 0,
+            nodes: 1,
+            first_solution: None,
+            cost_history: Vec::new(),
+            elapsed_ms: 0.0,
+        }
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct RrtPath {
     /// Start … goal, each edge collision-free.

@@ -41,13 +41,7 @@ pub fn rrt_star(
     }];
     // (node, index into `goals`): a free edge from the node to that goal.
     let mut goal_links: Vec<(usize, usize)> = Vec::new();
-    let mut stats = RrtStats {
-        iterations: 0,
-        nodes: 1,
-        first_solution: None,
-        cost_history: Vec::new(),
-        elapsed_ms: 0.0,
-    };
+    let mut stats = RrtStats::start();
     let best = |nodes: &[Node], links: &[(usize, usize)]| {
         links
             .iter()
