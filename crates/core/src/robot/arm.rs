@@ -100,9 +100,6 @@ pub struct Arm {
     disabled_pairs: Vec<(String, String)>,
     /// World pose of the chain's base link.
     pub base: Isometry3<f64>,
-    /// Where the arm stands when a request names no base (see
-    /// [`Arm::default_base`]).
-    default_base: Isometry3<f64>,
     /// Where a mobile base stands for a push ([`Arm::stances`]).
     stances: std::sync::OnceLock<Vec<BaseStance>>,
 }
@@ -300,22 +297,16 @@ impl Arm {
                 .map(|p| (p.a.clone(), p.b.clone()))
                 .collect(),
             base: Isometry3::identity(),
-            default_base: PAPER_BASE,
             stances: std::sync::OnceLock::new(),
         })
     }
 
     /// Where this arm stands when a request names no base: the paper's
-    /// mount, `base_link` at (−0.5, 0, 0.1) m from the tree root facing +x,
-    /// unless set with [`Arm::with_default_base`].
+    /// mount, `base_link` at (−0.5, 0, 0.1) m from the tree root facing +x.
+    /// Every caller asks the arm, so a description that names its own
+    /// mount changes this one method.
     pub fn default_base(&self) -> Isometry3<f64> {
-        self.default_base
-    }
-
-    /// This arm with another default base.
-    pub fn with_default_base(mut self, base: Isometry3<f64>) -> Self {
-        self.default_base = base;
-        self
+        PAPER_BASE
     }
 
     pub fn with_base(mut self, base: Isometry3<f64>) -> Self {

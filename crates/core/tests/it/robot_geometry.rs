@@ -7,7 +7,6 @@
 use std::path::Path;
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
-use treemanip_core::geometry::shape::Shape;
 use treemanip_core::robot::model::link_geometry::{link_geometry, mesh_triangles, resolve_mesh};
 use treemanip_core::robot::model::mesh_fit::Capsule;
 
@@ -31,18 +30,7 @@ fn the_pandas_meshes_are_enclosed_by_their_capsules() {
     assert!(meshes >= 8, "{meshes} meshes");
     let mut ratios = Vec::new();
     for link in &links {
-        let capsules: Vec<_> = link
-            .shapes
-            .iter()
-            .filter_map(|s| match s {
-                Shape::Capsule { a, b, radius } => Some(Capsule {
-                    a: *a,
-                    b: *b,
-                    radius: *radius,
-                }),
-                _ => None,
-            })
-            .collect();
+        let capsules: Vec<_> = link.shapes.iter().filter_map(Capsule::from_shape).collect();
         let urdf_link = robot.links.iter().find(|l| l.name == link.link).unwrap();
         for collision in &urdf_link.collision {
             let urdf_rs::Geometry::Mesh { filename, scale } = &collision.geometry else {

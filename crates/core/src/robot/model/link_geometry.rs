@@ -335,18 +335,7 @@ mod tests {
         assert_eq!(arm.meshes[0].triangles, 2);
         // Scaled to 0.2 m and lifted 0.5 m by the origin: every corner is
         // inside the capsules.
-        let capsules: Vec<Capsule> = arm
-            .shapes
-            .iter()
-            .filter_map(|s| match s {
-                Shape::Capsule { a, b, radius } => Some(Capsule {
-                    a: *a,
-                    b: *b,
-                    radius: *radius,
-                }),
-                _ => None,
-            })
-            .collect();
+        let capsules: Vec<Capsule> = arm.shapes.iter().filter_map(Capsule::from_shape).collect();
         for t in &bar {
             for p in t {
                 let q = Point3::new(

@@ -46,6 +46,19 @@ impl Capsule {
         }
     }
 
+    /// A capsule [`Shape`](crate::geometry::shape::Shape) as the fitter's
+    /// capsule (`None` for other shapes).
+    pub fn from_shape(shape: &crate::geometry::shape::Shape) -> Option<Self> {
+        match shape {
+            crate::geometry::shape::Shape::Capsule { a, b, radius } => Some(Self {
+                a: *a,
+                b: *b,
+                radius: *radius,
+            }),
+            _ => None,
+        }
+    }
+
     /// Length of the segment (m).
     pub fn height(&self) -> f64 {
         (self.b - self.a).norm()
