@@ -12,7 +12,7 @@
 #    binary need not embed its own copy.
 FROM docker.io/library/rust:1.95-bookworm AS build
 WORKDIR /src
-COPY Cargo.toml Cargo.lock openapi.yaml ./
+COPY Cargo.toml Cargo.lock ./
 COPY scripts/fetch-onnxruntime scripts/fetch-onnxruntime
 COPY crates crates
 COPY src src

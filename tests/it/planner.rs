@@ -53,10 +53,7 @@ fn check_execution(plan: &Plan, query: &Query) {
     use treemanip::robot::model::urdf_chain::Chain;
     use treemanip::robot::ur5::URDF;
     let Some(p) = &plan.plan else { return };
-    let e = p
-        .execution
-        .as_ref()
-        .expect("a planned push has its controller trajectory");
+    let e = &p.execution;
     let points = &e.joint_trajectory.points;
     let t: Vec<f64> = points.iter().map(|p| p.time_from_start.as_secs()).collect();
     assert!(t.windows(2).all(|w| w[1] > w[0]), "time increases");
@@ -292,7 +289,7 @@ fn a_tilted_base_plans_in_the_trees_frame() {
         if let Some(p) = &plan.plan {
             // The push runs along the planned push in the tree's frame: the
             // chain's tool, placed by the tilted base.
-            let e = p.execution.as_ref().unwrap();
+            let e = &p.execution;
             let points = &e.joint_trajectory.points;
             let chain = treemanip::robot::model::urdf_chain::Chain::from_urdf_str(
                 treemanip::robot::ur5::URDF,

@@ -259,7 +259,7 @@ fn every_arm_plans_trajectories_its_controller_can_run() {
             let plan = planner.plan(&q, policy, Some(forward)).unwrap();
             outcomes.extend(plan.attempts.iter().map(|a| a.outcome));
             let Some(p) = &plan.plan else { continue };
-            let e = p.execution.as_ref().expect("an execution");
+            let e = &p.execution;
             check_limits(&name, planner.robot(), &e.joint_trajectory);
             check_approach(&name, planner.robot(), &plan, &q);
             let json = serde_json::to_value(&e.joint_trajectory).unwrap();
@@ -458,7 +458,7 @@ pub(crate) fn check_limits(name: &str, arm: &Arm, trajectory: &JointTrajectory) 
 /// The approach (every point up to the push) is free of the tree.
 fn check_approach(name: &str, arm: &Arm, plan: &Plan, query: &Query) {
     let p = plan.plan.as_ref().unwrap();
-    let e = p.execution.as_ref().unwrap();
+    let e = &p.execution;
     let model = CollisionModel::new(arm.clone().with_base(plan.base.isometry()));
     let rest = TreeObstacles::new(&query.tree);
     let near = Allowed {

@@ -249,14 +249,20 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
     );
     match &plan.plan {
         Some(p) => {
-            let end = p.trajectory.last().map_or(0.0, |t| t.t);
-            let push_start = p.trajectory[p.push_start_index].t;
+            let e = &p.execution;
+            let at = |k: usize| e.joint_trajectory.points[k].time_from_start.as_secs();
+            let end = e
+                .joint_trajectory
+                .points
+                .last()
+                .map_or(0.0, |p| p.time_from_start.as_secs());
             println!(
-                "planned node {}: {} trajectory points, approach {:.2} s, push {:.2} s, planning {:.1} ms",
+                "planned node {}: {} trajectory points, approach {:.2} s, push {:.2} s, in all {:.2} s; planning {:.1} ms",
                 p.node,
-                p.trajectory.len(),
-                push_start,
-                end - push_start,
+                e.joint_trajectory.points.len(),
+                at(e.push_start_point),
+                at(e.push_end_point) - at(e.push_start_point),
+                end,
                 plan.total_ms
             );
         }

@@ -279,7 +279,8 @@ pub(super) fn worst_to_best(a: Outcome, b: Outcome) -> Outcome {
         Outcome::GoalInCollision => 2,
         Outcome::PushInfeasible => 3,
         Outcome::NoPath => 4,
-        _ => 5,
+        Outcome::NoTrajectory => 5,
+        _ => 6,
     };
     if depth(b) > depth(a) { b } else { a }
 }

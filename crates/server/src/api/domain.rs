@@ -1,23 +1,28 @@
 //! Refusing (or, when asked, flagging) requests outside a model's domain
 //! ([`treemanip_core::model::domain`]).
 
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use super::error::ApiError;
 use crate::api::types::Warning;
+use crate::api::types::domain::ViolationJson;
 use treemanip_core::model::domain::Violation;
 use treemanip_core::tree::Tree;
 use treemanip_infer::models::ServedModel;
 
-fn details(v: &Violation, model: &ServedModel) -> Value {
-    json!({
-        "model": model.name,
-        "quantity": v.quantity,
-        "value": v.value,
-        "min": v.min,
-        "max": v.max,
-        "node": v.node,
-    })
+fn details(v: &Violation, model: &ServedModel) -> ViolationJson {
+    ViolationJson {
+        model: model.name.clone(),
+        quantity: v.quantity.to_owned(),
+        value: v.value,
+        min: v.min,
+        max: v.max,
+        node: v.node,
+    }
+}
+
+fn details_json(v: &Violation, model: &ServedModel) -> Value {
+    serde_json::to_value(details(v, model)).unwrap_or(Value::Null)
 }
 
 /// Checks `tree` and the forward model's pushes (node, |T|) against
@@ -41,9 +46,9 @@ pub fn check(
         let all: Vec<Value> = violations
             .iter()
             .filter(|v| v.refused)
-            .map(|v| details(v, model))
+            .map(|v| details_json(v, model))
             .collect();
-        let mut d = details(v, model);
+        let mut d = details_json(v, model);
         d["violations"] = Value::Array(all);
         return Err(ApiError::out_of_domain(format!(
             "{v} (the {} model was trained on such trees only); set `allow_out_of_domain` to get an answer anyway",

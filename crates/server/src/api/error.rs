@@ -13,91 +13,13 @@
 //! | 504 | `timeout` | the request's time budget (or its `timeout_ms`) ran out |
 //! | 500 | `internal` | a bug: never caused by what a client sent |
 
-use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use serde_json::{Value, json};
+
+pub use crate::api::types::error::ErrorCode;
+use crate::api::types::error::{ErrorBody, ErrorResponse};
 use treemanip_core::planner::PlanError;
 use treemanip_infer::InferError;
-
-/// The API's error codes: each has one HTTP status. Clients branch on the
-/// code; `openapi.yaml`'s `Error.code` enum lists exactly these (tested).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum ErrorCode {
-    MalformedJson,
-    NotFound,
-    MethodNotAllowed,
-    TooLarge,
-    UnsupportedMediaType,
-    InvalidTree,
-    InvalidArgument,
-    PushInfeasible,
-    OutOfDomain,
-    NotReady,
-    Overloaded,
-    Timeout,
-    Internal,
-}
-
-impl ErrorCode {
-    pub const ALL: [ErrorCode; 13] = [
-        ErrorCode::MalformedJson,
-        ErrorCode::NotFound,
-        ErrorCode::MethodNotAllowed,
-        ErrorCode::TooLarge,
-        ErrorCode::UnsupportedMediaType,
-        ErrorCode::InvalidTree,
-        ErrorCode::InvalidArgument,
-        ErrorCode::PushInfeasible,
-        ErrorCode::OutOfDomain,
-        ErrorCode::NotReady,
-        ErrorCode::Overloaded,
-        ErrorCode::Timeout,
-        ErrorCode::Internal,
-    ];
-
-    /// The code as clients see it.
-    pub const fn as_str(self) -> &'static str {
-        match self {
-            ErrorCode::MalformedJson => "malformed_json",
-            ErrorCode::NotFound => "not_found",
-            ErrorCode::MethodNotAllowed => "method_not_allowed",
-            ErrorCode::TooLarge => "too_large",
-            ErrorCode::UnsupportedMediaType => "unsupported_media_type",
-            ErrorCode::InvalidTree => "invalid_tree",
-            ErrorCode::InvalidArgument => "invalid_argument",
-            ErrorCode::PushInfeasible => "push_infeasible",
-            ErrorCode::OutOfDomain => "out_of_domain",
-            ErrorCode::NotReady => "not_ready",
-            ErrorCode::Overloaded => "overloaded",
-            ErrorCode::Timeout => "timeout",
-            ErrorCode::Internal => "internal",
-        }
-    }
-
-    /// The HTTP status every answer with this code has.
-    pub const fn status(self) -> StatusCode {
-        match self {
-            ErrorCode::MalformedJson => StatusCode::BAD_REQUEST,
-            ErrorCode::NotFound => StatusCode::NOT_FOUND,
-            ErrorCode::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
-            ErrorCode::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
-            ErrorCode::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            ErrorCode::InvalidTree
-            | ErrorCode::InvalidArgument
-            | ErrorCode::PushInfeasible
-            | ErrorCode::OutOfDomain => StatusCode::UNPROCESSABLE_ENTITY,
-            ErrorCode::NotReady | ErrorCode::Overloaded => StatusCode::SERVICE_UNAVAILABLE,
-            ErrorCode::Timeout => StatusCode::GATEWAY_TIMEOUT,
-            ErrorCode::Internal => StatusCode::INTERNAL_SERVER_ERROR,
-        }
-    }
-}
-
-impl PartialEq<&str> for ErrorCode {
-    fn eq(&self, other: &&str) -> bool {
-        self.as_str() == *other
-    }
-}
 
 #[derive(Debug, Clone)]
 pub struct ApiError {
@@ -208,9 +130,13 @@ impl From<PlanError> for ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        let body = json!({
-            "error": { "code": self.code.as_str(), "message": self.message, "details": self.details }
-        });
+        let body = ErrorResponse {
+            error: ErrorBody {
+                code: self.code,
+                message: self.message,
+                details: self.details,
+            },
+        };
         (self.code.status(), axum::Json(body)).into_response()
     }
 }
@@ -219,18 +145,17 @@ impl IntoResponse for ApiError {
 mod tests {
     use super::*;
 
-    /// `openapi.yaml`'s `Error.code` enum is exactly [`ErrorCode::ALL`].
+    /// Every code is an error status, and the document's `ErrorCode` enum
+    /// (derived from [`ErrorCode::ALL`]) lists each code once.
     #[test]
-    fn the_openapi_error_codes_are_the_enum() {
-        let spec = super::super::OPENAPI_YAML;
-        let at = spec.find("    Error:\n").expect("an Error schema");
-        let rest = &spec[at..];
-        let start = rest.find("enum: [").expect("a code enum") + "enum: [".len();
-        let end = start + rest[start..].find(']').unwrap();
-        let listed: Vec<&str> = rest[start..end]
-            .split(',')
-            .map(str::trim)
-            .filter(|c| !c.is_empty())
+    fn every_code_is_an_error_status_and_documented() {
+        let doc = crate::api::openapi::document();
+        let schema = &doc["components"]["schemas"]["ErrorCode"]["enum"];
+        let listed: Vec<&str> = schema
+            .as_array()
+            .expect("an ErrorCode enum")
+            .iter()
+            .map(|v| v.as_str().unwrap())
             .collect();
         let ours: Vec<&str> = ErrorCode::ALL.iter().map(|c| c.as_str()).collect();
         assert_eq!(listed, ours);

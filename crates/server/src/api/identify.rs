@@ -17,6 +17,37 @@ use crate::api::types::{
     IdentifyRequest, IdentifyResponse, ProbesRequest, ProbesResponse, ProposedProbeJson,
 };
 
+/// Branch stiffness from observed probe pushes.
+///
+/// Each probe is a push the arm made and held, with where the tree's nodes
+/// were seen while it was held (null for nodes not seen) and, optionally, the
+/// contact force: the force the gripper applied to the branch, as
+/// /v1/simulate reports `contact_force` (a wrist force/torque sensor reads
+/// the opposite sign). The tree's `stiffness`, when given, is the prior mean,
+/// else the radius formula. The fit is the maximum a posteriori of ln K_s
+/// with the simulator as the observation model and the prior ln K ~ N(ln
+/// K_prior, σ²I + σ_g²11ᵀ) (σ = 0.4, σ_g = 1.0 by default); intervals are 90
+/// % (Laplace). Positions fix only stiffness ratios (a push at node j depends
+/// on the branches on the path root → j, and a global factor moves nothing):
+/// without a force `scale` is `relative` and the estimate keeps the prior's
+/// level (its mean ln K_s); with a force it is `absolute`. A branch is
+/// `identified` when the posterior σ of its ln K_s is at most 0.15, `weak`
+/// when probed but less certain (typically stiff trunk branches),
+/// `unobserved` when on no probe's path. Probes whose slot hold slid to a
+/// fork (`hold_switched`) or that the simulator cannot reproduce are left out
+/// and listed in `rejected`. The returned `tree` carries the estimate, ready
+/// for the other endpoints.
+#[utoipa::path(post, path = "/v1/identify", tag = "stiffness",
+    request_body = IdentifyRequest,
+    responses(
+    (status = 200, description = "The estimate.", body = IdentifyResponse),
+    (status = 400, response = crate::api::types::error::ErrorReply),
+    (status = 413, response = crate::api::types::error::ErrorReply),
+    (status = 415, response = crate::api::types::error::ErrorReply),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn identify(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<IdentifyRequest>,
@@ -40,6 +71,25 @@ pub async fn identify(
     Ok(axum::Json(response))
 }
 
+/// The next probe pushes that most reduce the stiffness uncertainty.
+///
+/// Candidates are pushes of `push_length` at the tree's leaves, in four
+/// directions across the leaf's branch; each is scored by its expected
+/// information gain about ln K_s (nats) under the posterior of the probes
+/// already made (`probes`, optional), and `count` are picked greedily, each
+/// counting the ones before it. Reachability by an arm is not checked here:
+/// plan each with /v1/plan's robot settings.
+#[utoipa::path(post, path = "/v1/identify/probes", tag = "stiffness",
+    request_body = ProbesRequest,
+    responses(
+    (status = 200, description = "Proposed probes, best first.", body = ProbesResponse),
+    (status = 400, response = crate::api::types::error::ErrorReply),
+    (status = 413, response = crate::api::types::error::ErrorReply),
+    (status = 415, response = crate::api::types::error::ErrorReply),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn propose(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<ProbesRequest>,

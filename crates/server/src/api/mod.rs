@@ -4,10 +4,10 @@
 //! the async executor only moves bytes.
 //!
 //! Routes (23, and `POST /debug/panic` and `/debug/panic-worker` with fault
-//! injection on; [`router`] is the list that serves them, `openapi.yaml`
-//! describes them):
+//! injection on; [`router`] is the list that serves them, [`openapi`]
+//! derives their document from the handlers and [`types`]):
 //! - service: `GET /healthz`, `GET /readyz`, `GET /metrics`,
-//!   `GET /openapi.yaml`, `GET /v1/models`;
+//!   `GET /v1/models` ([`service`]), `GET /openapi.yaml` ([`openapi`]);
 //! - models and physics: `POST /v1/forward`, `POST /v1/policy`,
 //!   `POST /v1/simulate` ([`predict`], [`simulate`]);
 //! - planning: `POST /v1/plan` ([`plan`], [`objective`]), `GET /v1/robots`
@@ -38,6 +38,7 @@ pub mod json;
 pub mod metrics;
 pub mod objective;
 pub mod observations;
+pub mod openapi;
 pub mod plan;
 pub mod predict;
 pub mod request_log;
@@ -45,6 +46,7 @@ pub mod robot_planners;
 pub mod robots;
 pub mod scene;
 pub mod server;
+pub mod service;
 pub mod shape;
 pub mod shutdown;
 pub mod simulate;
@@ -57,10 +59,8 @@ pub mod viewer;
 
 use axum::Router;
 use axum::extract::{DefaultBodyLimit, State};
-use axum::http::header;
 use axum::response::IntoResponse;
 use axum::routing::{get, post};
-use serde_json::json;
 
 use error::{ApiError, ErrorCode};
 pub use state::{AppState, Limits, ModelRef, REQUIRED_MODELS};
@@ -83,11 +83,11 @@ pub fn router(state: AppState) -> Router {
         );
     }
     routes
-        .route("/healthz", get(healthz))
-        .route("/readyz", get(readyz))
-        .route("/metrics", get(render_metrics))
-        .route("/openapi.yaml", get(openapi))
-        .route("/v1/models", get(list_models))
+        .route("/healthz", get(service::healthz))
+        .route("/readyz", get(service::readyz))
+        .route("/metrics", get(service::render_metrics))
+        .route("/openapi.yaml", get(openapi::serve))
+        .route("/v1/models", get(service::list_models))
         .route("/v1/forward", post(predict::forward))
         .route("/v1/policy", post(predict::policy))
         .route("/v1/plan", post(plan::plan))
@@ -144,84 +144,6 @@ fn panic_response(panic: Box<dyn std::any::Any + Send + 'static>) -> axum::respo
     ::metrics::counter!("treemanip_panics_total").increment(1);
     ApiError::internal("the server hit a bug while answering this request (it keeps serving)")
         .into_response()
-}
-
-/// The process is up and answering.
-async fn healthz() -> axum::Json<serde_json::Value> {
-    axum::Json(json!({ "status": "ok" }))
-}
-
-/// Ready means: every model the endpoints need is loaded.
-async fn readyz(State(state): State<AppState>) -> Result<axum::Json<serde_json::Value>, ApiError> {
-    let loaded: Vec<String> = state
-        .models
-        .as_ref()
-        .map(|m| m.models.iter().map(|m| m.name.clone()).collect())
-        .unwrap_or_default();
-    let missing: Vec<&str> = REQUIRED_MODELS
-        .iter()
-        .copied()
-        .filter(|r| !loaded.iter().any(|l| l == r))
-        .collect();
-    let broken: serde_json::Map<String, serde_json::Value> = state
-        .models
-        .as_ref()
-        .map(|m| {
-            m.broken
-                .iter()
-                .map(|(name, why)| (name.clone(), json!(why)))
-                .collect()
-        })
-        .unwrap_or_default();
-    if !missing.is_empty() {
-        return Err(ApiError::not_ready(format!(
-            "models not loaded: {} (POST /v1/simulate works without them)",
-            missing.join(", ")
-        ))
-        .with_details(json!({ "missing": missing, "loaded": loaded, "broken": broken })));
-    }
-    Ok(axum::Json(json!({
-        "status": "ready",
-        "models": loaded,
-        "broken": broken,
-        "backend": state.backend_name(),
-    })))
-}
-
-/// Every loaded model with its metadata.
-async fn list_models(State(state): State<AppState>) -> axum::Json<serde_json::Value> {
-    let models: Vec<serde_json::Value> = state
-        .models
-        .as_ref()
-        .map(|set| {
-            set.models
-                .iter()
-                .map(|m| {
-                    json!({
-                        "name": m.name,
-                        "task": m.task.name(),
-                        "file": m.file.file_name().map(|f| f.to_string_lossy().into_owned()),
-                        "metadata": m.card,
-                    })
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    axum::Json(json!({ "backend": state.backend_name(), "models": models }))
-}
-
-async fn render_metrics(State(state): State<AppState>) -> impl IntoResponse {
-    (
-        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        state.metrics.render(),
-    )
-}
-
-/// The API description, embedded at build time.
-pub const OPENAPI_YAML: &str = include_str!("../../../../openapi.yaml");
-
-async fn openapi() -> impl IntoResponse {
-    ([(header::CONTENT_TYPE, "application/yaml")], OPENAPI_YAML)
 }
 
 async fn not_found(uri: axum::http::Uri) -> ApiError {

@@ -169,6 +169,61 @@ fn count(value: Option<u64>, default: usize, max: usize, field: &str) -> Result<
     }
 }
 
+/// An arm's joint trajectory for the push that best serves an objective (a
+/// target shape, a region to clear, a region to reach) within load limits.
+///
+/// What the push is for is `objective` (or its shorthand `target_positions`,
+/// a full `shape`; both at once: 422): `shape` (target positions, optional
+/// per-node `weights`, 0 ignores a node), `clear` (keep every branch `margin`
+/// away from every region: spheres, yawed boxes, capsules such as a line of
+/// sight) or `reach` (one node into a region). `predicted_error` and
+/// `no_action_error` are the objective's residual in metres: shape, the
+/// largest weighted node distance to the target; clear, the deepest intrusion
+/// of a branch (a capsule of its radius) into a region grown by the margin, 0
+/// when clear; reach, the node's distance to its region, 0 inside. Among
+/// pushes that meet `clear` or `reach` the least stressing, then the
+/// shortest, is preferred. Pushes are held: objectives and loads are judged
+/// in the held state. `limits` (default 40 MPa bending stress, 50 N contact
+/// force; docs/tasks.md gives their sources) are enforced by `model` and
+/// `physics`: a push predicted over a limit is not executed (`over_limit`;
+/// for `model` the loads are read from the forward model's predicted
+/// positions and screened at twice the limits), and the push about to be
+/// executed is simulated (as its push line must be collision-checked against
+/// the deforming tree) and refused if it exceeds a limit; `model` also passes
+/// over a push whose simulation misses a `clear` or `reach` objective it was
+/// predicted to meet (`missed`). `paper` plans `shape` objectives only, never
+/// enforces limits, and reports the simulated loads of its pick. For a full
+/// shape the contact policy ranks the nodes and proposes a push for each; for
+/// other objectives the tree's geometry does (the branches in a region and
+/// their ancestors pushed away from it, the node to reach and its ancestors
+/// pushed toward it). With `strategy` `model` (default) or `physics`, the
+/// planner searches the push of the top `max_candidates` nodes (cross-entropy
+/// method around the policy's push, 5-15 cm, the policy's own push also as it
+/// is), keeps what the arm can reach (IK, joint limits, collision-free
+/// pre-contact pose, straight push), and scores each by the predicted largest
+/// node distance to the target (forward GNN or simulator); the best ones are
+/// executed in turn: the straight push against the deforming tree, then RRT*
+/// for the approach. A push predicted no better than doing nothing is never
+/// executed (`not_helpful`). `paper` is the paper's Algorithm 1: the policy's
+/// ranking and pushes as they are. If nothing searched can be carried out,
+/// the policy's ranking is walked as in `paper`. With `robot.base_region` the
+/// planner also chooses where the arm stands (returned as `base`), and,
+/// without `robot.start`, a collision-free tucked start there (`start`,
+/// `start_chosen`). `obstacles` (spheres, boxes, capsules) are avoided by every
+/// strategy. The plan is a timed joint trajectory: approach, then the
+/// straight push from `push_start_index`. `no_plan` is a normal answer, with
+/// every push looked at and why it was dropped.
+#[utoipa::path(post, path = "/v1/plan", tag = "planning",
+    request_body = PlanRequest,
+    responses(
+    (status = 200, description = "A plan, or why there is none.", body = PlanResponse),
+    (status = 400, response = crate::api::types::error::ErrorReply),
+    (status = 413, response = crate::api::types::error::ErrorReply),
+    (status = 415, response = crate::api::types::error::ErrorReply),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn plan(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<PlanRequest>,
@@ -263,6 +318,7 @@ fn response(
     };
     ::metrics::counter!("treemanip_plans_total", "status" => status).increment(1);
     let chosen = plan.plan;
+    let execution = chosen.as_ref().map(|p| &p.execution);
     let limits = plan.limits;
     PlanResponse {
         objective: plan.objective,
@@ -286,21 +342,19 @@ fn response(
         start_chosen: plan.start_chosen,
         robot: arm.name().to_owned(),
         joint_names: arm.joint_names().map(str::to_owned).collect(),
-        push_start_index: chosen.as_ref().map(|p| p.push_start_index),
-        push_start_point: chosen
-            .as_ref()
-            .and_then(|p| p.execution.as_ref())
-            .map(|e| e.push_start_point),
-        push_end_point: chosen
-            .as_ref()
-            .and_then(|p| p.execution.as_ref())
-            .map(|e| e.push_end_point),
-        joint_trajectory: chosen
-            .as_ref()
-            .and_then(|p| p.execution.as_ref())
-            .map(|e| JointTrajectoryJson::from(&e.joint_trajectory)),
-        trajectory: chosen
-            .map(|p| p.trajectory.iter().map(TimedPointJson::from).collect())
+        push_start_index: execution.map(|e| e.push_start_point),
+        push_start_point: execution.map(|e| e.push_start_point),
+        push_end_point: execution.map(|e| e.push_end_point),
+        joint_trajectory: execution.map(|e| JointTrajectoryJson::from(&e.joint_trajectory)),
+        // The approach and the push of the controller's trajectory: the
+        // one timing of the plan, in the form the viewer plays.
+        trajectory: execution
+            .map(|e| {
+                e.joint_trajectory.points[..=e.push_end_point]
+                    .iter()
+                    .map(TimedPointJson::from)
+                    .collect()
+            })
             .unwrap_or_default(),
         evaluations: plan.evaluations,
         attempts,

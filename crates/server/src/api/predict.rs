@@ -83,6 +83,25 @@ fn actions(
     }
 }
 
+/// Predicted node displacements under one or many pushes (GNN forward model).
+///
+/// Either one action (`contact_node` + `push`) or many on the same tree
+/// (`contact_nodes` + `pushes`, at most the server's max actions). The answer
+/// holds one set of per-node values per action. Pushes longer than the
+/// model's card allows (`domain.domain.push_length.max` in `/v1/models`:
+/// twice the longest trained push, 0.3 m for the shipped model trained on
+/// 0.05–0.15 m) are refused (422) rather than extrapolated.
+#[utoipa::path(post, path = "/v1/forward", tag = "models",
+    request_body = ForwardRequest,
+    responses(
+    (status = 200, description = "Predictions.", body = ForwardResponse),
+    (status = 400, response = crate::api::types::error::ErrorReply),
+    (status = 413, response = crate::api::types::error::ErrorReply),
+    (status = 415, response = crate::api::types::error::ErrorReply),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn forward(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<ForwardRequest>,
@@ -127,6 +146,23 @@ pub async fn forward(
     Ok(axum::Json(response))
 }
 
+/// Which node to push, and how, to move the tree toward a target (GNN contact
+/// policy).
+///
+/// Every non-root node, ranked by affordance (a softmax over the tree's
+/// nodes, renormalised over the pushable ones, so the list sums to 1), with
+/// the push T the policy proposes for it.
+#[utoipa::path(post, path = "/v1/policy", tag = "models",
+    request_body = PolicyRequest,
+    responses(
+    (status = 200, description = "Ranked candidates.", body = PolicyResponse),
+    (status = 400, response = crate::api::types::error::ErrorReply),
+    (status = 413, response = crate::api::types::error::ErrorReply),
+    (status = 415, response = crate::api::types::error::ErrorReply),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn policy(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<PolicyRequest>,

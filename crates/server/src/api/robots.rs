@@ -43,7 +43,16 @@ impl RobotJsonInfo {
     }
 }
 
-/// `GET /v1/robots`: every arm this server plans for.
+/// The arms this server plans for.
+///
+/// The built-in `ur5` and every arm the server was started with (`--robot
+/// NAME=PATH`, `TREEMANIP_ROBOTS`); `default` marks the one a request without
+/// `robot.name` gets. Limits are rad (m for a prismatic joint), per s, per
+/// s²; `tool_frame` is the pusher's tool frame in `tool_link`'s frame.
+#[utoipa::path(get, path = "/v1/robots", tag = "planning",
+    responses(
+    (status = 200, description = "Robots.", body = RobotsResponse),
+))]
 pub async fn robots(State(state): State<AppState>) -> axum::Json<RobotsResponse> {
     let set = &state.robots;
     axum::Json(RobotsResponse {

@@ -18,6 +18,7 @@ use super::tree_json::tree_error;
 use treemanip_core::geometry::shape::Shape;
 use treemanip_core::planner::base::BasePose;
 
+use crate::api::types::scene::ExampleQuery;
 use crate::api::types::{
     LinkJson, LinkPosesRequest, LinkPosesResponse, LinkShapeJson, TreeJson, TreeResponse,
     UrdfRequest,
@@ -30,6 +31,22 @@ pub const MAX_CONFIGURATIONS: usize = 2048;
 /// Example trees are generated with this many nodes unless asked otherwise.
 pub const DEFAULT_EXAMPLE_NODES: usize = 15;
 
+/// A tree URDF (as `treemanip` writes it) as tree JSON.
+///
+/// Parses the URDF with the same reader as the CLI and answers the tree in
+/// the JSON every other endpoint takes. Documents that are not URDF, or not a
+/// tree's URDF, are 422 with the parser's message.
+#[utoipa::path(post, path = "/v1/trees/urdf", tag = "trees",
+    request_body = UrdfRequest,
+    responses(
+    (status = 200, description = "The tree.", body = TreeResponse),
+    (status = 400, response = crate::api::types::error::ErrorReply),
+    (status = 413, response = crate::api::types::error::ErrorReply),
+    (status = 415, response = crate::api::types::error::ErrorReply),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn tree_from_urdf(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<UrdfRequest>,
@@ -93,6 +110,18 @@ fn example_query(query: Option<&str>, max_nodes: usize) -> Result<(usize, u64), 
     Ok((nodes, seed))
 }
 
+/// A Space Colonization tree from the dataset's generator.
+///
+/// The same generator and parameters as `treemanip trees`; the same `nodes`
+/// and `seed` always give the same tree.
+#[utoipa::path(get, path = "/v1/trees/example", tag = "trees",
+    params(ExampleQuery),
+    responses(
+    (status = 200, description = "The tree and its seed.", body = TreeResponse),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn example_tree(
     State(state): State<AppState>,
     RawQuery(query): RawQuery,
@@ -126,6 +155,25 @@ fn xyz(v: &Vector3<f64>) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
+/// The arm's link frames and collision shapes along a trajectory.
+///
+/// Forward kinematics of the planner's own arm model (`robot`, default the
+/// server's default robot, with its pusher tool): every link's world pose for
+/// each joint configuration (e.g. a `/v1/plan` trajectory's `q`), and each
+/// link's capsules and boxes in its frame, so a client draws exactly what the
+/// planner checks for collisions. Poses are `[x, y, z, qx, qy, qz, qw]` (m,
+/// unit quaternion); links are in the order of `links`.
+#[utoipa::path(post, path = "/v1/robot/link-poses", tag = "planning",
+    request_body = LinkPosesRequest,
+    responses(
+    (status = 200, description = "Links, their shapes, and their poses per configuration.", body = LinkPosesResponse),
+    (status = 400, response = crate::api::types::error::ErrorReply),
+    (status = 413, response = crate::api::types::error::ErrorReply),
+    (status = 415, response = crate::api::types::error::ErrorReply),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn link_poses(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<LinkPosesRequest>,

@@ -86,6 +86,11 @@ pub struct ServeArgs {
     /// image's HEALTHCHECK, which needs no curl.
     #[arg(long)]
     health_check: bool,
+    /// Print the OpenAPI document (derived from the wire types) and exit:
+    /// `treemanip-server --print-openapi > openapi.yaml` refreshes the
+    /// repository's copy.
+    #[arg(long)]
+    print_openapi: bool,
     /// Log format.
     #[arg(long, env = "TREEMANIP_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
     log_format: LogFormat,
@@ -100,6 +105,10 @@ pub enum LogFormat {
 /// Serves until a shutdown signal has drained the server (or, with
 /// `--health-check`, probes a running server and returns).
 pub fn run(args: ServeArgs) -> anyhow::Result<()> {
+    if args.print_openapi {
+        print!("{}", api::openapi::yaml());
+        return Ok(());
+    }
     if args.health_check {
         let addr = api::health_check::loopback_for(args.bind);
         api::health_check::check(addr, std::time::Duration::from_secs(2))

@@ -11,6 +11,23 @@ use crate::api::types::{SimulateRequest, SimulateResponse};
 use treemanip_core::sim::loads::branch_loads;
 use treemanip_core::sim::{MAX_PUSH_LENGTH, Push, SimConfig, SimError, simulate as run_sim};
 
+/// Ground truth of a push from the quasi-static simulator.
+///
+/// The gripper holds the branch ending at `contact_node` and moves by `push`;
+/// the answer is where the tree settles, with the solver's report. Pushes the
+/// physics rejects (the branch slips out of the slot, the node cannot be
+/// carried that far) are 422 push_infeasible.
+#[utoipa::path(post, path = "/v1/simulate", tag = "physics",
+    request_body = SimulateRequest,
+    responses(
+    (status = 200, description = "The steady state.", body = SimulateResponse),
+    (status = 400, response = crate::api::types::error::ErrorReply),
+    (status = 413, response = crate::api::types::error::ErrorReply),
+    (status = 415, response = crate::api::types::error::ErrorReply),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn simulate(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<SimulateRequest>,

@@ -5,38 +5,57 @@
 //! shaped as [`treemanip_infer::contract`] says. JSON tensor data and Triton's
 //! binary tensor data extension are both read; outputs are JSON.
 
-use super::types::v2::{InferRequest, OutputTensor};
+use super::types::v2::{
+    InferRequest, InferResponse, LiveResponse, ModelMetadata, ModelReadyResponse, OutputTensor,
+    ReadyResponse, ServerMetadata, TensorMetadata,
+};
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
 use axum::http::HeaderMap;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use super::error::ApiError;
+use super::types::schema::ModelName;
 use super::{AppState, ModelRef};
 use treemanip_infer::contract::{self, DATATYPE, TensorSpec};
 use treemanip_infer::models::MAX_BATCH;
 
-/// `GET /v2`.
-pub async fn server_metadata() -> Json<Value> {
-    Json(json!({
-        "name": "treemanip",
-        "version": env!("CARGO_PKG_VERSION"),
-        "extensions": ["binary_tensor_data"],
-    }))
+/// Open Inference Protocol (KServe v2) server metadata.
+#[utoipa::path(get, path = "/v2", tag = "oip",
+    responses(
+    (status = 200, description = "Server name, version and protocol extensions.", body = ServerMetadata),
+))]
+pub async fn server_metadata() -> Json<ServerMetadata> {
+    Json(ServerMetadata {
+        name: "treemanip",
+        version: env!("CARGO_PKG_VERSION"),
+        extensions: vec!["binary_tensor_data"],
+    })
 }
 
-/// `GET /v2/health/live`.
-pub async fn live() -> Json<Value> {
-    Json(json!({ "live": true }))
+/// Open Inference Protocol liveness.
+#[utoipa::path(get, path = "/v2/health/live", tag = "oip",
+    responses(
+    (status = 200, description = "Live.", body = LiveResponse),
+))]
+pub async fn live() -> Json<LiveResponse> {
+    Json(LiveResponse { live: true })
 }
 
-/// `GET /v2/health/ready`: ready when every model the domain API needs is.
-pub async fn ready(State(state): State<AppState>) -> Result<Json<Value>, ApiError> {
+/// Open Inference Protocol readiness (the models the domain API needs are
+/// loaded).
+#[utoipa::path(get, path = "/v2/health/ready", tag = "oip",
+    responses(
+    (status = 200, description = "Ready.", body = ReadyResponse),
+    (status = 404, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+))]
+pub async fn ready(State(state): State<AppState>) -> Result<Json<ReadyResponse>, ApiError> {
     for name in super::REQUIRED_MODELS {
         model(&state, name)?;
     }
-    Ok(Json(json!({ "ready": true })))
+    Ok(Json(ReadyResponse { ready: true }))
 }
 
 /// The served model `name`: 404 if there is no such model, 503 if its file
@@ -57,41 +76,57 @@ fn model(state: &AppState, name: &str) -> Result<ModelRef, ApiError> {
     state.model_by_name(name)
 }
 
-fn describe(specs: &[TensorSpec]) -> Vec<Value> {
+fn describe(specs: &[TensorSpec]) -> Vec<TensorMetadata> {
     specs
         .iter()
-        .map(|s| {
-            json!({
-                "name": s.name,
-                "datatype": DATATYPE,
-                "shape": s.dims.iter().map(|d| d.oip()).collect::<Vec<_>>(),
-            })
+        .map(|s| TensorMetadata {
+            name: s.name,
+            datatype: DATATYPE,
+            shape: s.dims.iter().map(|d| d.oip()).collect(),
         })
         .collect()
 }
 
-/// `GET /v2/models/{name}`: the model's real tensors.
+/// A model's metadata with its real tensor names, shapes (-1 variable) and
+/// datatypes.
+#[utoipa::path(get, path = "/v2/models/{name}", tag = "oip",
+    params(("name" = ModelName, Path)),
+    responses(
+    (status = 200, description = "Model metadata.", body = ModelMetadata),
+    (status = 404, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn model_metadata(
     State(state): State<AppState>,
     Path(name): Path<String>,
-) -> Result<Json<Value>, ApiError> {
+) -> Result<Json<ModelMetadata>, ApiError> {
     let m = model(&state, &name)?;
-    Ok(Json(json!({
-        "name": m.name,
-        "versions": ["1"],
-        "platform": "onnx",
-        "inputs": describe(&contract::inputs(m.task)),
-        "outputs": describe(&contract::outputs(m.task)),
-    })))
+    Ok(Json(ModelMetadata {
+        name: m.name.clone(),
+        versions: vec!["1"],
+        platform: "onnx",
+        inputs: describe(&contract::inputs(m.task)),
+        outputs: describe(&contract::outputs(m.task)),
+    }))
 }
 
-/// `GET /v2/models/{name}/ready`.
+/// Whether one model is loaded and serving.
+#[utoipa::path(get, path = "/v2/models/{name}/ready", tag = "oip",
+    params(("name" = ModelName, Path)),
+    responses(
+    (status = 200, description = "Ready.", body = ModelReadyResponse),
+    (status = 404, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn model_ready(
     State(state): State<AppState>,
     Path(name): Path<String>,
-) -> Result<Json<Value>, ApiError> {
+) -> Result<Json<ModelReadyResponse>, ApiError> {
     let m = model(&state, &name)?;
-    Ok(Json(json!({ "name": m.name, "ready": true })))
+    Ok(Json(ModelReadyResponse {
+        name: m.name.clone(),
+        ready: true,
+    }))
 }
 
 fn bad(message: impl Into<String>) -> ApiError {
@@ -110,13 +145,37 @@ fn flatten(value: &Value, out: &mut Vec<f32>, name: &str) -> Result<(), ApiError
     }
 }
 
-/// `POST /v2/models/{name}/infer`.
+/// Open Inference Protocol inference on raw tensors (see GET
+/// /v2/models/{name}).
+///
+/// Inputs are the model's tensors in raw SI features, FP32, as the project's
+/// graph encoder writes them (B graphs of N nodes). Feature layout 2: `edges`
+/// [B, N, N, 6] holds, for i → j, [Δp = p_j − p_i (m, 3), v (+1 when i is an
+/// ancestor of j, else −1), b (1 when i and j are parent and child, else 0),
+/// κ = ln K_s − the tree's mean ln K_s for that branch (0 when not a
+/// branch)]; `nodes` holds [c_j] (forward) or [p′_j − p_j] (policy), `global`
+/// [T] (forward), `mask` 1 for real nodes. Tensor data may be JSON (flat or
+/// nested) or, with Triton's binary tensor data extension, raw little-endian
+/// bytes after a JSON header of `Inference-Header-Content-Length` bytes.
+/// Outputs are JSON.
+#[utoipa::path(post, path = "/v2/models/{name}/infer", tag = "oip",
+    params(("name" = ModelName, Path)),
+    request_body = InferRequest,
+    responses(
+    (status = 200, description = "Output tensors.", body = InferResponse),
+    (status = 400, response = crate::api::types::error::ErrorReply),
+    (status = 404, response = crate::api::types::error::ErrorReply),
+    (status = 413, response = crate::api::types::error::ErrorReply),
+    (status = 422, response = crate::api::types::error::ErrorReply),
+    (status = 503, response = crate::api::types::error::ErrorReply),
+    (status = 504, response = crate::api::types::error::ErrorReply),
+))]
 pub async fn infer(
     State(state): State<AppState>,
     Path(name): Path<String>,
     headers: HeaderMap,
     body: Bytes,
-) -> Result<Json<Value>, ApiError> {
+) -> Result<Json<InferResponse>, ApiError> {
     let m = model(&state, &name)?;
     let task = m.task;
     // Triton's binary extension: a JSON header of this many bytes, then the
@@ -209,13 +268,10 @@ pub async fn infer(
             data,
         });
     }
-    let mut response = json!({
-        "model_name": model_name,
-        "model_version": "1",
-        "outputs": outputs,
-    });
-    if let Some(id) = request.id {
-        response["id"] = json!(id);
-    }
-    Ok(Json(response))
+    Ok(Json(InferResponse {
+        model_name,
+        model_version: "1",
+        id: request.id,
+        outputs,
+    }))
 }

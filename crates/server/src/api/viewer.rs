@@ -59,6 +59,14 @@ fn serve(asset: &Asset) -> Response {
         .into_response()
 }
 
+/// The browser viewer (HTML; its files under /viewer/).
+///
+/// Draws a tree, the forward model's prediction beside the simulator's
+/// truth, the policy's affordances and a planned arm motion, using the
+/// endpoints above. Its files are embedded in the server; it needs no
+/// network.
+#[utoipa::path(get, path = "/viewer", tag = "viewer",
+    responses((status = 200, description = "The page.", body = String, content_type = "text/html")))]
 pub async fn index() -> Response {
     serve(&ASSETS[0])
 }

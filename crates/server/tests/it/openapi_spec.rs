@@ -1,9 +1,32 @@
-//! openapi.yaml is a valid OpenAPI 3.1 document (checked by
+//! openapi.yaml is the document the server derives from its wire types
+//! (so a change of a type that is not carried into the committed file
+//! fails here), a valid OpenAPI 3.1 document (checked by
 //! openapi-spec-validator from PyPI; skipped, with the reason printed, when
-//! it is not installed, except in CI) and lists every route the server
+//! it is not installed, except in CI), and lists every route the server
 //! serves.
 
 use std::process::Command;
+
+/// The committed `openapi.yaml` is exactly what the types generate.
+#[test]
+fn the_committed_spec_is_the_generated_one() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../openapi.yaml");
+    let committed = std::fs::read_to_string(path).expect("openapi.yaml");
+    let generated = treemanip_server::api::openapi::yaml();
+    if committed != generated {
+        let line = committed
+            .lines()
+            .zip(generated.lines())
+            .position(|(a, b)| a != b)
+            .unwrap_or_else(|| committed.lines().count().min(generated.lines().count()));
+        panic!(
+            "openapi.yaml differs from the document the wire types generate, first at line {}:\n  committed: {:?}\n  generated: {:?}\nrefresh it with `cargo run -p treemanip-server -- --print-openapi > openapi.yaml`",
+            line + 1,
+            committed.lines().nth(line),
+            generated.lines().nth(line)
+        );
+    }
+}
 
 #[test]
 fn the_spec_validates() {
@@ -41,7 +64,7 @@ fn the_spec_validates() {
 
 #[test]
 fn every_served_route_is_described() {
-    let spec = treemanip_server::api::OPENAPI_YAML;
+    let spec = treemanip_server::api::openapi::yaml();
     for route in [
         "/healthz:",
         "/readyz:",
@@ -51,6 +74,9 @@ fn every_served_route_is_described() {
         "/v1/forward:",
         "/v1/policy:",
         "/v1/plan:",
+        "/v1/robots:",
+        "/v1/identify:",
+        "/v1/identify/probes:",
         "/v1/models:",
         "/v1/trees/urdf:",
         "/v1/trees/example:",
@@ -88,4 +114,30 @@ fn every_served_route_is_described() {
             "error code {code} missing from openapi.yaml"
         );
     }
+}
+
+/// The limits a derive attribute states as a literal are the server's:
+/// a tree's node cap, and the models the repository ships.
+#[test]
+fn literal_limits_match_the_code() {
+    let doc = treemanip_server::api::openapi::document();
+    let tree = &doc["components"]["schemas"]["Tree"]["properties"];
+    let cap = treemanip_core::tree::MAX_NODES as u64;
+    for field in ["positions", "parents", "radius", "stiffness"] {
+        assert_eq!(tree[field]["maxItems"].as_u64(), Some(cap), "Tree.{field}");
+    }
+    assert_eq!(tree["parents"]["items"]["maximum"].as_u64(), Some(cap - 1));
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../models");
+    let mut shipped: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| {
+            let p = e.unwrap().path();
+            (p.extension()? == "onnx")
+                .then(|| p.file_stem().unwrap().to_string_lossy().into_owned())
+        })
+        .collect();
+    shipped.sort();
+    let mut listed: Vec<&str> = treemanip_server::api::types::schema::SHIPPED_MODELS.to_vec();
+    listed.sort();
+    assert_eq!(shipped, listed);
 }

@@ -111,6 +111,10 @@ pub enum Outcome {
     PushInfeasible,
     /// RRT* found no path within its budget.
     NoPath,
+    /// A path was found, but no controller trajectory could be made of it
+    /// (the timed push would leave a joint's limits, or the approach could
+    /// not be timed): a plan is never answered without its trajectory.
+    NoTrajectory,
     /// A budget (time, or the predictions of a searching strategy) ran
     /// out before this candidate.
     Skipped,
@@ -133,13 +137,16 @@ pub struct PushPlan {
     pub node: usize,
     pub rank: usize,
     pub push: Vector3<f64>,
-    /// Approach then push, timed.
+    /// The path: approach then push, each waypoint at the earliest time
+    /// the joints' limits allow (what the planner's own checks walk; the
+    /// controller's timing is `execution`).
     pub trajectory: Vec<TimedPoint>,
     /// Index of the trajectory point where the push begins (the tool at the
     /// pre-contact pose).
     pub push_start_index: usize,
-    /// The whole held push timed for a controller (ROS 2 JointTrajectory).
-    pub execution: Option<Execution>,
+    /// The whole held push timed for a controller (ROS 2 JointTrajectory):
+    /// every plan has one ([`Outcome::NoTrajectory`] otherwise).
+    pub execution: Execution,
 }
 
 /// Tool poses for the pre-contact of a push (both slot orientations), or
@@ -345,7 +352,8 @@ pub fn execute(
         &direction,
         travel,
         &options.execution,
-    );
+    )
+    .ok_or(Outcome::NoTrajectory)?;
     Ok(PushPlan {
         node,
         rank: 0,

@@ -1,7 +1,9 @@
 //! Every request and response type of the HTTP API, in one place, one file
 //! per endpoint group (as text-embeddings-inference keeps its router's in
 //! `http/types.rs`). Handlers in [`crate::api`] turn them into core types
-//! and back; `openapi.yaml` describes them.
+//! and back; the OpenAPI document is derived from them
+//! ([`crate::api::openapi`]), with [`schema`] for what a derive cannot
+//! state.
 //!
 //! No core type is serialized as an answer or read as a request: each
 //! has a mirror here (`StrategyJson`, `AttemptJson`, `ContactJson`, ...),
@@ -9,6 +11,7 @@
 //! changes the wire by itself.
 
 pub mod domain;
+pub mod error;
 pub mod identify;
 pub mod models;
 pub mod motion;
@@ -17,6 +20,8 @@ pub mod plan;
 pub mod predict;
 pub mod robots;
 pub mod scene;
+pub mod schema;
+pub mod service;
 pub mod shape;
 pub mod simulate;
 pub mod tree;

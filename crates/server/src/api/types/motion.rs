@@ -9,14 +9,16 @@ use treemanip_core::planner::base::BasePose;
 use treemanip_core::planner::{Attempt, Clearance, Limits, Strategy};
 use treemanip_core::robot::motion::push_motion::Outcome;
 use treemanip_core::robot::motion::ros::{JointTrajectory, JointTrajectoryPoint, RosDuration};
-use treemanip_core::robot::motion::trajectory::TimedPoint;
+use utoipa::ToSchema;
 
 use crate::api::types::objective::LoadsJson;
+use crate::api::types::schema::{Joints, Vec3};
 
 /// How the push is chosen: `model` (search with the forward GNN, the
 /// default), `physics` (search with the simulator), `paper` (Algorithm 1).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
+#[schema(as = Strategy)]
 pub enum StrategyJson {
     #[default]
     Model,
@@ -45,11 +47,17 @@ impl From<Strategy> for StrategyJson {
 }
 
 /// Where the arm's `base_link` stands (m) and how it is turned (rad).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, ToSchema)]
+#[schema(as = BasePose)]
 pub struct BasePoseJson {
+    #[schema(value_type = Vec3)]
     pub position: [f64; 3],
+    /// rad about the vertical axis.
     pub yaw: f64,
+    /// rad about the base's x axis (0 upright, π hanging);
+    /// R = Rz(yaw) Ry(pitch) Rx(roll).
     pub roll: f64,
+    /// rad about the base's y axis.
     pub pitch: f64,
 }
 
@@ -64,40 +72,55 @@ impl From<BasePose> for BasePoseJson {
     }
 }
 
-/// One waypoint of the planned path: time (s) and joint positions.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// One point of the planned motion: time (s) and joint positions, as the
+/// controller trajectory has them (`joint_trajectory.points`).
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[schema(as = TimedPoint)]
 pub struct TimedPointJson {
+    /// s.
     pub t: f64,
+    #[schema(value_type = Joints)]
     pub q: Vec<f64>,
 }
 
-impl From<&TimedPoint> for TimedPointJson {
-    fn from(p: &TimedPoint) -> Self {
+impl From<&JointTrajectoryPoint> for TimedPointJson {
+    fn from(p: &JointTrajectoryPoint) -> Self {
         Self {
-            t: p.t,
-            q: p.q.to_vec(),
+            t: p.time_from_start.as_secs(),
+            q: p.positions.clone(),
         }
     }
 }
 
 /// `builtin_interfaces/Duration`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema)]
+#[schema(as = RosDuration)]
 pub struct RosDurationJson {
     pub sec: i32,
+    #[schema(minimum = 0, maximum = 999999999)]
     pub nanosec: u32,
 }
 
 /// `trajectory_msgs/JointTrajectoryPoint`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[schema(as = JointTrajectoryPoint)]
 pub struct JointTrajectoryPointJson {
+    /// rad (m for a prismatic joint).
     pub positions: Vec<f64>,
+    /// rad/s.
     pub velocities: Vec<f64>,
+    /// rad/s².
     pub accelerations: Vec<f64>,
     pub time_from_start: RosDurationJson,
 }
 
-/// `trajectory_msgs/JointTrajectory` (without its header).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// ROS 2 `trajectory_msgs/msg/JointTrajectory` without its header: the
+/// whole held push (approach, straight push, hold, release, retreat),
+/// velocity-continuous, within every joint's velocity and acceleration
+/// limit; the approach's waypoints blended when the blended path is
+/// collision-free.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+#[schema(as = JointTrajectory)]
 pub struct JointTrajectoryJson {
     pub joint_names: Vec<String>,
     pub points: Vec<JointTrajectoryPointJson>,
@@ -133,8 +156,9 @@ impl From<&JointTrajectory> for JointTrajectoryJson {
 }
 
 /// Why a push was or was not planned.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
+#[schema(as = Outcome)]
 pub enum OutcomeJson {
     Planned,
     InvalidCandidate,
@@ -142,6 +166,7 @@ pub enum OutcomeJson {
     GoalInCollision,
     PushInfeasible,
     NoPath,
+    NoTrajectory,
     Skipped,
     NotHelpful,
     StartInCollision,
@@ -158,6 +183,7 @@ impl From<Outcome> for OutcomeJson {
             Outcome::GoalInCollision => OutcomeJson::GoalInCollision,
             Outcome::PushInfeasible => OutcomeJson::PushInfeasible,
             Outcome::NoPath => OutcomeJson::NoPath,
+            Outcome::NoTrajectory => OutcomeJson::NoTrajectory,
             Outcome::Skipped => OutcomeJson::Skipped,
             Outcome::NotHelpful => OutcomeJson::NotHelpful,
             Outcome::StartInCollision => OutcomeJson::StartInCollision,
@@ -177,6 +203,7 @@ impl OutcomeJson {
             OutcomeJson::GoalInCollision => "goal_in_collision",
             OutcomeJson::PushInfeasible => "push_infeasible",
             OutcomeJson::NoPath => "no_path",
+            OutcomeJson::NoTrajectory => "no_trajectory",
             OutcomeJson::Skipped => "skipped",
             OutcomeJson::NotHelpful => "not_helpful",
             OutcomeJson::StartInCollision => "start_in_collision",
@@ -187,18 +214,24 @@ impl OutcomeJson {
 }
 
 /// One push the planner looked at, and what became of it.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, ToSchema)]
+#[schema(as = Attempt)]
 pub struct AttemptJson {
     pub node: usize,
+    /// The node's rank among the proposed pushes (the policy's, or the
+    /// geometry's for other objectives than a full shape).
     pub rank: usize,
+    #[schema(value_type = Vec3)]
     pub push: [f64; 3],
     pub outcome: OutcomeJson,
+    /// The objective's predicted residual after this push (m).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub predicted_error: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub predicted_loads: Option<LoadsJson>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub simulated_loads: Option<LoadsJson>,
+    /// Time spent on it (ms).
     pub ms: f64,
 }
 
@@ -218,9 +251,12 @@ impl From<&Attempt> for AttemptJson {
 }
 
 /// The load limits enforced (Pa, N).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, ToSchema)]
+#[schema(as = LimitsEnforced)]
 pub struct LimitsAnswer {
+    /// Pa.
     pub max_stress: f64,
+    /// N.
     pub max_contact_force: f64,
 }
 
@@ -234,9 +270,12 @@ impl From<Limits> for LimitsAnswer {
 }
 
 /// The clearance a `clear` plan reaches (m; negative: overlapping).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, ToSchema)]
+#[schema(as = Clearance)]
 pub struct ClearanceJson {
+    #[schema(required = true)]
     pub predicted: Option<f64>,
+    #[schema(required = true)]
     pub simulated: Option<f64>,
 }
 

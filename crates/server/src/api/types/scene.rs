@@ -1,42 +1,75 @@
 //! `/v1/trees/urdf`, `/v1/trees/example` and `/v1/robot/link-poses`.
 
-use crate::api::types::motion::BasePoseJson;
 use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
 
+use crate::api::types::motion::BasePoseJson;
+use crate::api::types::schema::{Joints, Pose, Vec3, angle};
 use crate::api::types::tree::TreeJson;
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct UrdfRequest {
     /// A tree URDF document as `treemanip` writes it.
     pub urdf: String,
 }
 
-#[derive(Debug, Clone, Serialize)]
+/// `GET /v1/trees/example`'s query. The handler reads it as text so that a
+/// bad value is a 422 naming the parameter; this type documents it.
+#[derive(Debug, Clone, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct ExampleQuery {
+    /// Nodes of the tree (at most the server's `--max-nodes`).
+    #[param(minimum = 4, maximum = 64, default = 15)]
+    pub nodes: Option<u32>,
+    /// The generator's seed: the same `nodes` and `seed` always give the
+    /// same tree.
+    #[param(schema_with = seed)]
+    pub seed: Option<u64>,
+}
+
+/// Any u64 (the derive would say `int64`, whose range is half of it).
+fn seed() -> utoipa::openapi::schema::Object {
+    use utoipa::openapi::schema::{ObjectBuilder, Type};
+    ObjectBuilder::new()
+        .schema_type(Type::Integer)
+        .minimum(Some(0))
+        .maximum(Some(u64::MAX))
+        .default(Some(0.into()))
+        .build()
+}
+
+#[derive(Debug, Clone, Serialize, ToSchema)]
 pub struct TreeResponse {
     pub tree: TreeJson,
+    /// How many nodes the tree has.
     pub nodes: usize,
     /// The generator's seed (examples only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
+#[schema(as = Base)]
 pub struct BaseJson {
     /// m, tree frame.
+    #[schema(value_type = Vec3)]
     pub position: Vec<f64>,
     /// Rotation about the vertical axis (rad).
     #[serde(default)]
+    #[schema(schema_with = angle)]
     pub yaw: f64,
     /// Tilt of a tilted or hanging mount (rad; see `robot.base_rpy`).
     #[serde(default)]
+    #[schema(schema_with = angle)]
     pub roll: f64,
     #[serde(default)]
+    #[schema(schema_with = angle)]
     pub pitch: f64,
 }
 
-#[derive(Debug, Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LinkPosesRequest {
     /// Which arm (`GET /v1/robots`); default the server's default robot.
@@ -45,48 +78,58 @@ pub struct LinkPosesRequest {
     /// Where the arm stands (`/v1/plan`'s `base`); default the paper's mount.
     #[serde(default)]
     pub base: Option<BaseJson>,
-    /// Joint configurations (rad), e.g. a plan's trajectory.
+    /// Joint configurations (rad), e.g. a plan's trajectory's.
+    #[schema(value_type = Vec<Joints>, min_items = 1, max_items = 2048)]
     pub configurations: Vec<Vec<f64>>,
 }
 
 /// A collision shape in its link's frame (m).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, ToSchema)]
 #[serde(tag = "kind", rename_all = "snake_case")]
+#[schema(as = LinkShape)]
 pub enum LinkShapeJson {
-    /// The capsule around segment a–b.
+    /// The capsule around segment a–b (a sphere: a = b).
     Capsule {
+        #[schema(value_type = Vec3)]
         a: [f64; 3],
+        #[schema(value_type = Vec3)]
         b: [f64; 3],
         radius: f64,
     },
-    /// A box: its centre's pose `[x, y, z, qx, qy, qz, qw]` and half extents.
+    /// A box: its centre's pose and half extents.
     Box {
+        #[schema(value_type = Pose)]
         pose: [f64; 7],
+        #[schema(value_type = Vec3)]
         half_extents: [f64; 3],
     },
     /// A cylinder along the local z axis of its centre's pose.
     Cylinder {
+        #[schema(value_type = Pose)]
         pose: [f64; 7],
         radius: f64,
         half_length: f64,
     },
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, ToSchema)]
+#[schema(as = Link)]
 pub struct LinkJson {
     pub name: String,
     /// Index of the parent link (`null` for the root).
+    #[schema(required = true)]
     pub parent: Option<usize>,
     pub shapes: Vec<LinkShapeJson>,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, ToSchema)]
 pub struct LinkPosesResponse {
     pub base: BasePoseJson,
     /// The arm these are the links of.
     pub robot: String,
     pub joint_names: Vec<String>,
     pub links: Vec<LinkJson>,
-    /// Per configuration, per link: world pose `[x, y, z, qx, qy, qz, qw]`.
+    /// Per configuration, per link: world pose.
+    #[schema(value_type = Vec<Vec<Pose>>)]
     pub poses: Vec<Vec<[f64; 7]>>,
 }
