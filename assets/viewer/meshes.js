@@ -83,7 +83,8 @@ export class TreeMesh {
 
 /**
  * A mesh for one collision shape of `/v1/robot/link-poses` in its link's
- * frame: capsules and cylinders in `arm`, boxes (the gripper's) in `grip`.
+ * frame (the API's one shape schema): capsules, spheres and cylinders in
+ * `arm`, boxes (the gripper's) in `grip`.
  */
 export function shapeMesh(s, arm, grip) {
   let m = null;
@@ -94,7 +95,9 @@ export function shapeMesh(s, arm, grip) {
     placeBetween(m, a, b);
     return m;
   }
-  if (s.kind === 'cylinder') {
+  if (s.kind === 'sphere') {
+    m = new THREE.Mesh(new THREE.SphereGeometry(s.radius, 16, 12), arm);
+  } else if (s.kind === 'cylinder') {
     m = new THREE.Mesh(new THREE.CylinderGeometry(s.radius, s.radius, 2 * s.half_length, 16), arm);
   } else if (s.kind === 'box') {
     const h = s.half_extents;
@@ -102,10 +105,14 @@ export function shapeMesh(s, arm, grip) {
   } else {
     return null;
   }
-  m.position.set(s.pose[0], s.pose[1], s.pose[2]);
-  m.quaternion.set(s.pose[3], s.pose[4], s.pose[5], s.pose[6]);
+  m.position.set(s.centre[0], s.centre[1], s.centre[2]);
+  if (s.rotation) {
+    m.quaternion.set(s.rotation[0], s.rotation[1], s.rotation[2], s.rotation[3]);
+  } else if (s.yaw) {
+    m.quaternion.setFromAxisAngle(new THREE.Vector3(0, 0, 1), s.yaw);
+  }
   if (s.kind === 'cylinder') {
-    // three.js cylinders run along y; ours along the pose's z.
+    // three.js cylinders run along y; ours along the rotation's z.
     m.quaternion.multiply(new THREE.Quaternion().setFromAxisAngle(new THREE.Vector3(1, 0, 0), Math.PI / 2));
   }
   return m;

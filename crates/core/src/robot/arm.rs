@@ -197,13 +197,7 @@ impl Arm {
                 .enumerate()
                 .map(|(k, s)| s.shape().map_err(|e| format!("tool.shapes[{k}]: {e}")))
                 .collect::<Result<_, _>>()?,
-            None => GRIPPER_BOXES
-                .iter()
-                .map(|b| Shape::Box {
-                    pose: Isometry3::translation(b.centre[0], b.centre[1], b.centre[2]),
-                    half_extents: Vector3::from(b.size) / 2.0,
-                })
-                .collect(),
+            None => GRIPPER_BOXES.iter().map(|b| b.shape()).collect(),
         };
         let tool_frame = match &d.tool.frame {
             Some(f) if !(f.xyz.iter().chain(&f.rpy).all(|v| v.is_finite())) => {

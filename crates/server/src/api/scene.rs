@@ -7,7 +7,7 @@
 //! these; so can any client, with no second URDF parser or kinematics.
 
 use axum::extract::{RawQuery, State};
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3};
 use serde::Deserialize;
 use serde_json::json;
 
@@ -15,13 +15,11 @@ use super::AppState;
 use super::error::ApiError;
 use super::json::ApiJson;
 use super::tree_json::tree_error;
-use treemanip_core::geometry::shape::Shape;
 use treemanip_core::planner::base::BasePose;
 
 use crate::api::types::scene::ExampleQuery;
 use crate::api::types::{
-    LinkJson, LinkPosesRequest, LinkPosesResponse, LinkShapeJson, TreeJson, TreeResponse,
-    UrdfRequest,
+    LinkJson, LinkPosesRequest, LinkPosesResponse, ShapeJson, TreeJson, TreeResponse, UrdfRequest,
 };
 use treemanip_core::tree::sca::{self, MIN_GENERATED_NODES, ScaError, ScaParams};
 use treemanip_core::tree::urdf::{UrdfError, from_urdf_str};
@@ -151,18 +149,16 @@ fn pose7(iso: &Isometry3<f64>) -> [f64; 7] {
     [t.x, t.y, t.z, q.x, q.y, q.z, q.w]
 }
 
-fn xyz(v: &Vector3<f64>) -> [f64; 3] {
-    [v.x, v.y, v.z]
-}
-
 /// The arm's link frames and collision shapes along a trajectory.
 ///
 /// Forward kinematics of the planner's own arm model (`robot`, default the
 /// server's default robot, with its pusher tool): every link's world pose for
 /// each joint configuration (e.g. a `/v1/plan` trajectory's `q`), and each
-/// link's capsules and boxes in its frame, so a client draws exactly what the
-/// planner checks for collisions. Poses are `[x, y, z, qx, qy, qz, qw]` (m,
-/// unit quaternion); links are in the order of `links`.
+/// link's collision shapes in its frame, in the one shape schema that
+/// regions and obstacles use (capsules, spheres, boxes and cylinders with a
+/// `rotation` quaternion), so a client draws exactly what the planner
+/// checks for collisions. Poses are `[x, y, z, qx, qy, qz, qw]` (m, unit
+/// quaternion); links are in the order of `links`.
 #[utoipa::path(post, path = "/v1/robot/link-poses", tag = "planning",
     request_body = LinkPosesRequest,
     responses(
@@ -222,37 +218,7 @@ pub async fn link_poses(
                 .map(|(i, (name, shapes))| LinkJson {
                     name: name.to_owned(),
                     parent: robot.link_parent(i),
-                    shapes: shapes
-                        .iter()
-                        .map(|s| match s {
-                            Shape::Capsule { a, b, radius } => LinkShapeJson::Capsule {
-                                a: xyz(&a.coords),
-                                b: xyz(&b.coords),
-                                radius: *radius,
-                            },
-                            Shape::Sphere {
-                                centre: center,
-                                radius,
-                            } => LinkShapeJson::Capsule {
-                                a: xyz(&center.coords),
-                                b: xyz(&center.coords),
-                                radius: *radius,
-                            },
-                            Shape::Box { pose, half_extents } => LinkShapeJson::Box {
-                                pose: pose7(pose),
-                                half_extents: xyz(half_extents),
-                            },
-                            Shape::Cylinder {
-                                pose,
-                                radius,
-                                half_length,
-                            } => LinkShapeJson::Cylinder {
-                                pose: pose7(pose),
-                                radius: *radius,
-                                half_length: *half_length,
-                            },
-                        })
-                        .collect(),
+                    shapes: shapes.iter().map(ShapeJson::from).collect(),
                 })
                 .collect();
             let poses = configurations

@@ -1,8 +1,10 @@
 //! The one shape schema of the wire: `objective.regions`, `objective.region`
-//! and `obstacles` are each a [`ShapeJson`] (a sphere, a box turned about
-//! the vertical, or a capsule; m, rad), checked by one validator into
-//! [`treemanip_core::geometry::shape::Shape`].
+//! and `obstacles` are each a [`ShapeJson`] (a sphere, a box, a capsule or
+//! a cylinder; m, rad), checked by one validator into
+//! [`treemanip_core::geometry::shape::Shape`]; the links' shapes of
+//! `/v1/robot/link-poses` are answered in the same schema.
 
+use nalgebra::{Isometry3, Quaternion, UnitQuaternion};
 use treemanip_core::geometry::shape::Shape;
 
 use super::error::ApiError;
@@ -46,8 +48,27 @@ fn size(value: f64, field: &str, rule: &SizeRule) -> Result<f64, ApiError> {
     Err(ApiError::invalid_field(field, message))
 }
 
+/// `[qx, qy, qz, qw]` at `field`: four finite numbers, not all zero,
+/// normalised.
+fn unit_quaternion(q: &[f64], field: &str) -> Result<UnitQuaternion<f64>, ApiError> {
+    let ok = q.len() == 4 && q.iter().all(|x| x.is_finite());
+    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if !ok || norm <= 1e-9 {
+        return Err(ApiError::invalid_field(
+            field,
+            format!(
+                "`{field}` must be a quaternion [qx, qy, qz, qw] of finite numbers, not all zero"
+            ),
+        ));
+    }
+    Ok(UnitQuaternion::from_quaternion(Quaternion::new(
+        q[3], q[0], q[1], q[2],
+    )))
+}
+
 /// `json` at `field` (e.g. `objective.regions[2]`), checked: points within
-/// reach of the root, sizes positive and within `rule`, a finite yaw.
+/// reach of the root, sizes positive and within `rule`, a finite yaw or a
+/// rotation (a box takes one of them).
 pub fn shape(json: &ShapeJson, field: &str, rule: &SizeRule) -> Result<Shape, ApiError> {
     Ok(match json {
         ShapeJson::Sphere { centre, radius } => Shape::Sphere {
@@ -58,6 +79,7 @@ pub fn shape(json: &ShapeJson, field: &str, rule: &SizeRule) -> Result<Shape, Ap
             centre,
             half_extents,
             yaw,
+            rotation,
         } => {
             let h = vector3(half_extents, &format!("{field}.half_extents"))?;
             for k in 0..3 {
@@ -69,7 +91,40 @@ pub fn shape(json: &ShapeJson, field: &str, rule: &SizeRule) -> Result<Shape, Ap
                     format!("`{field}.yaw` must be finite"),
                 ));
             }
-            Shape::turned_box(near_point(centre, &format!("{field}.centre"))?, h, *yaw)
+            let centre = near_point(centre, &format!("{field}.centre"))?;
+            match rotation {
+                None => Shape::turned_box(centre, h, *yaw),
+                Some(_) if *yaw != 0.0 => {
+                    return Err(ApiError::invalid_field(
+                        &format!("{field}.rotation"),
+                        format!("give `{field}.yaw` or `{field}.rotation`, not both"),
+                    ));
+                }
+                Some(q) => Shape::Box {
+                    pose: Isometry3::from_parts(
+                        centre.coords.into(),
+                        unit_quaternion(q, &format!("{field}.rotation"))?,
+                    ),
+                    half_extents: h,
+                },
+            }
+        }
+        ShapeJson::Cylinder {
+            centre,
+            rotation,
+            radius,
+            half_length,
+        } => {
+            let centre = near_point(centre, &format!("{field}.centre"))?;
+            let rotation = match rotation {
+                Some(q) => unit_quaternion(q, &format!("{field}.rotation"))?,
+                None => UnitQuaternion::identity(),
+            };
+            Shape::Cylinder {
+                pose: Isometry3::from_parts(centre.coords.into(), rotation),
+                radius: size(*radius, &format!("{field}.radius"), rule)?,
+                half_length: size(*half_length, &format!("{field}.half_length"), rule)?,
+            }
         }
         ShapeJson::Capsule { a, b, radius } => Shape::Capsule {
             a: near_point(a, &format!("{field}.a"))?,

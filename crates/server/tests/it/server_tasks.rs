@@ -183,6 +183,91 @@ fn sphere_obstacles_are_obstacles() {
     );
 }
 
+/// Every kind of the one shape schema is an obstacle (a turned box, a
+/// cylinder on its side), a box takes `yaw` or `rotation` but not both, and
+/// the arm's link shapes `/v1/robot/link-poses` answers are that schema:
+/// sent back as obstacles (moved 3 m away) they are accepted as they are.
+#[test]
+fn every_shape_kind_is_an_obstacle_and_the_scene_speaks_the_same_schema() {
+    let server = Server::start(&["--models-dir", MODELS]);
+    let (tree, _) = task();
+    let tree_json = serde_json::to_value(TreeJson::from_tree(&tree)).unwrap();
+    let targets: Vec<Value> = tree.positions().iter().map(p).collect();
+    let body = |obstacles: Value| {
+        json!({ "tree": tree_json, "target_positions": targets, "strategy": "physics",
+                "max_evaluations": 8, "obstacles": obstacles })
+    };
+    // Around the arm's default base (the paper's mount at (-0.5, 0, 0.1)):
+    // a box turned 45° about x, a cylinder lying along y.
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let around_base = [
+        json!({ "kind": "box", "centre": [-0.5, 0.0, 0.3], "half_extents": [0.3, 0.3, 0.3],
+                "rotation": [(std::f64::consts::FRAC_PI_8).sin(), 0.0, 0.0, (std::f64::consts::FRAC_PI_8).cos()] }),
+        json!({ "kind": "cylinder", "centre": [-0.5, 0.0, 0.3], "rotation": [s, 0.0, 0.0, s],
+                "radius": 0.3, "half_length": 0.5 }),
+    ];
+    for shape in &around_base {
+        let (status, answer) = server.json("POST", "/v1/plan", &body(json!([shape])));
+        assert_eq!(status, 422, "{shape}: {answer}");
+        assert_eq!(
+            answer["error"]["details"]["field"], "robot.start",
+            "{answer}"
+        );
+        // The same shape 3 m away blocks nothing.
+        let mut far = shape.clone();
+        far["centre"][0] = json!(2.5);
+        let (status, answer) = server.json("POST", "/v1/plan", &body(json!([far])));
+        assert_eq!(status, 200, "{far}: {answer}");
+    }
+    for (shape, field) in [
+        (
+            json!({ "kind": "box", "centre": [2.0, 0.0, 0.3], "half_extents": [0.1, 0.1, 0.1],
+                    "yaw": 0.3, "rotation": [0.0, 0.0, 0.0, 1.0] }),
+            "obstacles.rotation",
+        ),
+        (
+            json!({ "kind": "cylinder", "centre": [2.0, 0.0, 0.3], "rotation": [0.0, 0.0, 0.0, 0.0],
+                    "radius": 0.1, "half_length": 0.1 }),
+            "obstacles.rotation",
+        ),
+        (
+            json!({ "kind": "cylinder", "centre": [2.0, 0.0, 0.3], "radius": 0.1, "half_length": 0.0 }),
+            "obstacles.half_length",
+        ),
+    ] {
+        let (status, answer) = server.json("POST", "/v1/plan", &body(json!([shape])));
+        assert_eq!(status, 422, "{shape}: {answer}");
+        assert_eq!(answer["error"]["details"]["field"], field, "{answer}");
+    }
+    let (status, scene) = server.json(
+        "POST",
+        "/v1/robot/link-poses",
+        &json!({ "configurations": [[0.0, -1.5, 1.5, 0.0, 0.0, 0.0]] }),
+    );
+    assert_eq!(status, 200, "{scene}");
+    let mut shapes: Vec<Value> = scene["links"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|l| l["shapes"].as_array().unwrap().clone())
+        .collect();
+    let kinds: std::collections::BTreeSet<&str> =
+        shapes.iter().map(|s| s["kind"].as_str().unwrap()).collect();
+    assert!(
+        kinds.contains("capsule") && kinds.contains("box"),
+        "{kinds:?}"
+    );
+    for shape in &mut shapes {
+        for key in ["centre", "a", "b"] {
+            if let Some(x) = shape[key][0].as_f64() {
+                shape[key][0] = json!(x + 3.0);
+            }
+        }
+    }
+    let (status, answer) = server.json("POST", "/v1/plan", &body(json!(shapes)));
+    assert_eq!(status, 200, "{answer}");
+}
+
 /// Each bad objective or limit gets a 4xx JSON error naming its field, and
 /// the server goes on answering.
 #[test]

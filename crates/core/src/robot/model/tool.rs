@@ -3,6 +3,10 @@
 //! branch. Its boxes are in the flange frame (z out of the flange); the
 //! tool frame is the palm's face, [`TOOL_OFFSET`] out along z.
 
+use nalgebra::{Isometry3, Vector3};
+
+use crate::geometry::shape::Shape;
+
 /// The name of the tool frame's link.
 pub const TOOL_LINK: &str = "tool";
 /// The name of the link carrying the ⊔ gripper's boxes when they are
@@ -27,11 +31,23 @@ pub const FINGER_THICKNESS: f64 = 0.02;
 pub const GRIPPER_DEPTH: f64 = 0.04;
 
 /// A box of the gripper, in the flange frame: centre and full size (m).
+/// A table of numbers because it is a `const`; [`BoxSpec::shape`] is the
+/// box as every other part of the planner sees one.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BoxSpec {
     pub link: &'static str,
     pub centre: [f64; 3],
     pub size: [f64; 3],
+}
+
+impl BoxSpec {
+    /// The box as a [`Shape`] in the flange frame.
+    pub fn shape(&self) -> Shape {
+        Shape::Box {
+            pose: Isometry3::translation(self.centre[0], self.centre[1], self.centre[2]),
+            half_extents: Vector3::from(self.size) / 2.0,
+        }
+    }
 }
 
 pub const GRIPPER_BOXES: [BoxSpec; 4] = [

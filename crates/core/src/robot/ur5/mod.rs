@@ -63,7 +63,9 @@ pub const HOME: JointVector = JointVector::new([
     0.0,
 ]);
 
-/// A capsule around (part of) a link, in the link's frame (m).
+/// A capsule around (part of) a link, in the link's frame (m): data for
+/// the UR5's URDF writer (`urdf.rs`), which the planner reads back as
+/// [`crate::geometry::shape::Shape`]s like any other arm's URDF.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CapsuleSpec {
     pub link: &'static str,

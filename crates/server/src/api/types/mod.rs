@@ -44,8 +44,7 @@ pub use robots::{
     BaseRegionJson, JointLimitsJson, RobotJson, RobotJsonInfo, RobotsResponse, ToolFrameJson,
 };
 pub use scene::{
-    BaseJson, LinkJson, LinkPosesRequest, LinkPosesResponse, LinkShapeJson, TreeResponse,
-    UrdfRequest,
+    BaseJson, LinkJson, LinkPosesRequest, LinkPosesResponse, TreeResponse, UrdfRequest,
 };
 pub use shape::ShapeJson;
 pub use simulate::{ContactJson, SimulateRequest, SimulateResponse};

@@ -5,6 +5,7 @@ use utoipa::{IntoParams, ToSchema};
 
 use crate::api::types::motion::BasePoseJson;
 use crate::api::types::schema::{Joints, Pose, Vec3, angle};
+use crate::api::types::shape::ShapeJson;
 use crate::api::types::tree::TreeJson;
 
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
@@ -83,35 +84,6 @@ pub struct LinkPosesRequest {
     pub configurations: Vec<Vec<f64>>,
 }
 
-/// A collision shape in its link's frame (m).
-#[derive(Debug, Clone, Serialize, ToSchema)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-#[schema(as = LinkShape)]
-pub enum LinkShapeJson {
-    /// The capsule around segment a–b (a sphere: a = b).
-    Capsule {
-        #[schema(value_type = Vec3)]
-        a: [f64; 3],
-        #[schema(value_type = Vec3)]
-        b: [f64; 3],
-        radius: f64,
-    },
-    /// A box: its centre's pose and half extents.
-    Box {
-        #[schema(value_type = Pose)]
-        pose: [f64; 7],
-        #[schema(value_type = Vec3)]
-        half_extents: [f64; 3],
-    },
-    /// A cylinder along the local z axis of its centre's pose.
-    Cylinder {
-        #[schema(value_type = Pose)]
-        pose: [f64; 7],
-        radius: f64,
-        half_length: f64,
-    },
-}
-
 #[derive(Debug, Clone, Serialize, ToSchema)]
 #[schema(as = Link)]
 pub struct LinkJson {
@@ -119,7 +91,8 @@ pub struct LinkJson {
     /// Index of the parent link (`null` for the root).
     #[schema(required = true)]
     pub parent: Option<usize>,
-    pub shapes: Vec<LinkShapeJson>,
+    /// Its collision shapes, in its frame.
+    pub shapes: Vec<ShapeJson>,
 }
 
 #[derive(Debug, Clone, Serialize, ToSchema)]

@@ -47,6 +47,20 @@ impl PartialSchema for Joints {
 }
 impl ToSchema for Joints {}
 
+/// A rotation as a unit quaternion.
+pub struct Quaternion;
+
+impl PartialSchema for Quaternion {
+    fn schema() -> RefOr<Schema> {
+        numbers(
+            4,
+            4,
+            "[qx, qy, qz, qw]: a rotation (normalised by the server; not all zero)",
+        )
+    }
+}
+impl ToSchema for Quaternion {}
+
 /// A frame's pose.
 pub struct Pose;
 
