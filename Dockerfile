@@ -37,8 +37,12 @@ RUN useradd --system --uid 10001 --no-create-home --shell /usr/sbin/nologin tree
 COPY --from=build /out/treemanip /usr/local/bin/treemanip
 COPY --from=onnxruntime /opt/onnxruntime/libonnxruntime.so.1.31.1 /opt/onnxruntime/libonnxruntime.so.1.31.1
 COPY models/*.onnx /app/models/
+# The shipped arms (self-contained imported descriptions), served by name
+# beside the built-in ur5.
+COPY robots/*.toml /app/robots/
 ENV ORT_DYLIB_PATH=/opt/onnxruntime/libonnxruntime.so.1.31.1
 ENV TREEMANIP_MODELS_DIR=/app/models
+ENV TREEMANIP_ROBOTS_DIR=/app/robots
 ENV TREEMANIP_BIND=0.0.0.0:8080
 ENV TREEMANIP_LOG_FORMAT=json
 USER 10001

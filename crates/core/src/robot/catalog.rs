@@ -71,6 +71,39 @@ impl std::str::FromStr for RobotSpec {
     }
 }
 
+/// The imported descriptions in folder `dir` (every `*.toml` directly in
+/// it, written by `treemanip robot import`, as `robots/` holds them), each
+/// named by its file's stem, sorted by name; the built-in arm's name is
+/// left out (the built-in keeps it; serve the imported one under another
+/// name with `--robot`). A folder that does not exist holds none.
+pub fn folder(dir: &Path) -> Result<Vec<RobotSpec>, DescriptionError> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => {
+            return Err(DescriptionError {
+                file: dir.to_path_buf(),
+                message: format!("cannot be read: {e}"),
+            });
+        }
+    };
+    let mut specs: Vec<RobotSpec> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "toml"))
+        .filter_map(|path| {
+            let name = path.file_stem()?.to_str()?.to_owned();
+            (name != BUILT_IN).then_some(RobotSpec {
+                name,
+                path,
+                tip: None,
+                base: None,
+            })
+        })
+        .collect();
+    specs.sort_by(|a, b| a.name.cmp(&b.name));
+    Ok(specs)
+}
+
 /// The specifications in `TREEMANIP_ROBOTS`-style text: separated by `;`
 /// or whitespace.
 pub fn parse_list(text: &str) -> Result<Vec<RobotSpec>, String> {
@@ -261,5 +294,15 @@ mod tests {
                 .contains("unknown option")
         );
         assert_eq!(parse_list("a=x.toml; b=y.urdf,tip=t").unwrap().len(), 2);
+    }
+
+    /// `robots/` lists the shipped arms by name, without the built-in's
+    /// name; a folder that is not there lists none.
+    #[test]
+    fn a_folder_lists_its_descriptions_by_name() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots");
+        let names: Vec<String> = folder(&dir).unwrap().into_iter().map(|s| s.name).collect();
+        assert_eq!(names, ["iiwa", "panda", "ur10"]);
+        assert!(folder(&dir.join("no-such-folder")).unwrap().is_empty());
     }
 }

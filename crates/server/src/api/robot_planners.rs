@@ -1,5 +1,6 @@
-//! The arms this server plans for: one [`Planner`] each, the built-in `ur5`
-//! and every `--robot`, by name, with the default one.
+//! The arms this server plans for: one [`Planner`] each, the built-in `ur5`,
+//! the shipped descriptions (`--robots-dir`) and every `--robot`, by name,
+//! with the default one.
 
 use std::sync::Arc;
 
@@ -29,12 +30,14 @@ impl Default for RobotPlanners {
 }
 
 impl RobotPlanners {
-    /// The built-in UR5 and `arms` (each at the default mount); the first
-    /// of `arms` becomes the default. An arm named `ur5` replaces the
-    /// built-in one.
-    pub fn new(arms: Vec<Arm>) -> Self {
+    /// The built-in UR5, the `catalog` arms (a folder's, never the
+    /// default), then the `given` ones (`--robot`; the first becomes the
+    /// default). An arm replaces an earlier one of its name (`--robot
+    /// ur5=...` the built-in one).
+    pub fn new(catalog: Vec<Arm>, given: Vec<Arm>) -> Self {
         let mut out = Self::default();
-        for (k, arm) in arms.into_iter().enumerate() {
+        let from_catalog = catalog.len();
+        for (k, arm) in catalog.into_iter().chain(given).enumerate() {
             let name = arm.name().to_owned();
             let planner = Arc::new(Planner::new(CollisionModel::new({
                 let base = arm.default_base();
@@ -50,7 +53,7 @@ impl RobotPlanners {
                     out.entries.len() - 1
                 }
             };
-            if k == 0 {
+            if k == from_catalog {
                 out.default = at;
             }
         }

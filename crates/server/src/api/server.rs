@@ -72,6 +72,12 @@ pub struct ServeArgs {
     /// robot. `TREEMANIP_ROBOTS` lists them separated by `;`.
     #[arg(long = "robot", env = "TREEMANIP_ROBOTS", value_delimiter = ';')]
     robots: Vec<treemanip_core::robot::catalog::RobotSpec>,
+    /// A folder of imported descriptions (`treemanip robot import`), each
+    /// served by its file's name beside the built-in `ur5`, which stays
+    /// the default unless `--robot` names one (the repository's `robots/`:
+    /// `panda`, `ur10`, `iiwa`). A folder that does not exist serves none.
+    #[arg(long, env = "TREEMANIP_ROBOTS_DIR", default_value = "robots")]
+    robots_dir: std::path::PathBuf,
     /// Serve the robots that load and log the others, instead of refusing
     /// to start on a broken robot file.
     #[arg(long, env = "TREEMANIP_SKIP_BROKEN_ROBOTS")]
@@ -193,12 +199,18 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     );
 
     let packages = treemanip_core::robot::model::link_geometry::package_path_from_env();
-    let mut arms = Vec::new();
-    for spec in &args.robots {
+    let shipped = treemanip_core::robot::catalog::folder(&args.robots_dir)
+        .map_err(|e| anyhow::anyhow!("--robots-dir: {e}"))?;
+    let (mut catalog, mut arms) = (Vec::new(), Vec::new());
+    for (spec, given) in shipped
+        .iter()
+        .map(|s| (s, false))
+        .chain(args.robots.iter().map(|s| (s, true)))
+    {
         match treemanip_core::robot::catalog::load(spec, &packages) {
             Ok(arm) => {
-                tracing::info!(robot = %spec.name, dof = arm.dof(), closed_form_ik = arm.has_closed_form_ik(), "robot loaded");
-                arms.push(arm);
+                tracing::info!(robot = %spec.name, path = %spec.path.display(), dof = arm.dof(), closed_form_ik = arm.has_closed_form_ik(), "robot loaded");
+                if given { &mut arms } else { &mut catalog }.push(arm);
             }
             Err(e) if args.skip_broken_robots => {
                 tracing::error!(robot = %spec.name, error = %e, "robot not loaded; serving without it");
@@ -209,7 +221,7 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
             ),
         }
     }
-    let robots = api::robot_planners::RobotPlanners::new(arms);
+    let robots = api::robot_planners::RobotPlanners::new(catalog, arms);
 
     let listener = TcpListener::bind(args.bind)
         .await

@@ -34,8 +34,10 @@ fn the_server_plans_for_the_arm_each_request_names() {
     assert_eq!(status, 200, "{answer}");
     let robots = answer["robots"].as_array().unwrap();
     let names: Vec<&str> = robots.iter().map(|r| r["name"].as_str().unwrap()).collect();
-    assert_eq!(names, ["ur5", "panda", "iiwa"]);
-    let panda = &robots[1];
+    // The built-in, then robots/ by name (a --robot of the same name
+    // takes its place).
+    assert_eq!(names, ["ur5", "iiwa", "panda", "ur10"]);
+    let panda = &robots[2];
     assert_eq!(panda["default"], true, "the first --robot is the default");
     assert_eq!(panda["dof"], 7);
     assert_eq!(panda["joint_names"].as_array().unwrap().len(), 7);
@@ -98,7 +100,7 @@ fn the_server_plans_for_the_arm_each_request_names() {
         answer["error"]["message"]
             .as_str()
             .unwrap()
-            .contains("ur5, panda, iiwa")
+            .contains("ur5, iiwa, panda, ur10")
     );
     let (status, answer) = server.json(
         "POST",
@@ -143,8 +145,68 @@ fn a_broken_robot_stops_start_up_naming_it_unless_skipped() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("bad.toml"), "{stderr}");
     assert!(stderr.contains("--skip-broken-robots"), "{stderr}");
-    let server = Server::start(&["--robot", &spec, "--skip-broken-robots"]);
+    let empty = dir.join("no-robots");
+    let empty = empty.to_str().unwrap();
+    let server = Server::start(&[
+        "--robot",
+        &spec,
+        "--skip-broken-robots",
+        "--robots-dir",
+        empty,
+    ]);
     let (status, answer) = server.get("/v1/robots");
     assert_eq!(status, 200);
     assert_eq!(answer["robots"].as_array().unwrap().len(), 1, "{answer}");
+
+    // A broken description in the robots folder stops start-up too.
+    std::fs::create_dir_all(dir.join("folder")).unwrap();
+    std::fs::write(dir.join("folder/bad.toml"), "name = \"bad\"\ndof = 6\n").unwrap();
+    let out = Command::new(crate::common::server::server_exe())
+        .current_dir(crate::common::server::workspace_root())
+        .args(["--bind", "127.0.0.1:0", "--robots-dir"])
+        .arg(dir.join("folder"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("bad.toml"), "{stderr}");
+}
+
+/// Without `--robot`, the shipped descriptions in `robots/` are served by
+/// name beside the built-in `ur5`, which stays the default; a plan names
+/// one and gets its joints and its controller trajectory.
+#[test]
+fn the_shipped_arms_are_served_by_name() {
+    let server = Server::start(&[]);
+    let (status, answer) = server.get("/v1/robots");
+    assert_eq!(status, 200, "{answer}");
+    let robots = answer["robots"].as_array().unwrap();
+    let names: Vec<&str> = robots.iter().map(|r| r["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["ur5", "iiwa", "panda", "ur10"]);
+    let defaults: Vec<&str> = robots
+        .iter()
+        .filter(|r| r["default"] == true)
+        .map(|r| r["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(defaults, ["ur5"]);
+    for (name, dof) in [("ur10", 6), ("panda", 7)] {
+        let (status, answer) = server.json(
+            "POST",
+            "/v1/plan",
+            &plan_body(json!({ "name": name,
+                "base_region": { "min": [-1.0, -0.5, 0.1], "max": [0.0, 0.5, 1.0] } })),
+        );
+        assert_eq!(status, 200, "{answer}");
+        assert_eq!(answer["robot"], name);
+        assert_eq!(answer["joint_names"].as_array().unwrap().len(), dof);
+        if answer["status"] == "planned" {
+            assert!(
+                answer["joint_trajectory"]["points"]
+                    .as_array()
+                    .unwrap()
+                    .len()
+                    > 2
+            );
+        }
+    }
 }
