@@ -2,6 +2,7 @@
 //! `POST /v1/identify/probes` (which pushes to probe next). The work is
 //! `treemanip_core::identify`; this file only translates.
 
+use crate::api::types::error::PostErrors;
 use axum::extract::State;
 use serde_json::json;
 use treemanip_core::identify::probes::{ProbeRequest, choose_probes};
@@ -41,12 +42,7 @@ use crate::api::types::{
     request_body = IdentifyRequest,
     responses(
     (status = 200, description = "The estimate.", body = IdentifyResponse),
-    (status = 400, response = crate::api::types::error::ErrorReply),
-    (status = 413, response = crate::api::types::error::ErrorReply),
-    (status = 415, response = crate::api::types::error::ErrorReply),
-    (status = 422, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
-    (status = 504, response = crate::api::types::error::ErrorReply),
+    PostErrors,
 ))]
 pub async fn identify(
     State(state): State<AppState>,
@@ -83,12 +79,7 @@ pub async fn identify(
     request_body = ProbesRequest,
     responses(
     (status = 200, description = "Proposed probes, best first.", body = ProbesResponse),
-    (status = 400, response = crate::api::types::error::ErrorReply),
-    (status = 413, response = crate::api::types::error::ErrorReply),
-    (status = 415, response = crate::api::types::error::ErrorReply),
-    (status = 422, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
-    (status = 504, response = crate::api::types::error::ErrorReply),
+    PostErrors,
 ))]
 pub async fn propose(
     State(state): State<AppState>,

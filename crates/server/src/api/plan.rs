@@ -1,6 +1,7 @@
 //! `POST /v1/plan`: turns the JSON request into a [`planner::Query`] and
 //! the [`planner::Plan`] into JSON; the planning is in [`treemanip_core::planner`].
 
+use crate::api::types::error::PostErrors;
 use std::time::Duration;
 
 use axum::extract::State;
@@ -217,12 +218,7 @@ fn count(value: Option<u64>, default: usize, max: usize, field: &str) -> Result<
     request_body = PlanRequest,
     responses(
     (status = 200, description = "A plan, or why there is none.", body = PlanResponse),
-    (status = 400, response = crate::api::types::error::ErrorReply),
-    (status = 413, response = crate::api::types::error::ErrorReply),
-    (status = 415, response = crate::api::types::error::ErrorReply),
-    (status = 422, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
-    (status = 504, response = crate::api::types::error::ErrorReply),
+    PostErrors,
 ))]
 pub async fn plan(
     State(state): State<AppState>,

@@ -1,5 +1,6 @@
 //! `POST /v1/forward` and `POST /v1/policy`: the learned models.
 
+use crate::api::types::error::PostErrors;
 use axum::extract::State;
 use nalgebra::Vector3;
 use serde_json::json;
@@ -95,12 +96,7 @@ fn actions(
     request_body = ForwardRequest,
     responses(
     (status = 200, description = "Predictions.", body = ForwardResponse),
-    (status = 400, response = crate::api::types::error::ErrorReply),
-    (status = 413, response = crate::api::types::error::ErrorReply),
-    (status = 415, response = crate::api::types::error::ErrorReply),
-    (status = 422, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
-    (status = 504, response = crate::api::types::error::ErrorReply),
+    PostErrors,
 ))]
 pub async fn forward(
     State(state): State<AppState>,
@@ -156,12 +152,7 @@ pub async fn forward(
     request_body = PolicyRequest,
     responses(
     (status = 200, description = "Ranked candidates.", body = PolicyResponse),
-    (status = 400, response = crate::api::types::error::ErrorReply),
-    (status = 413, response = crate::api::types::error::ErrorReply),
-    (status = 415, response = crate::api::types::error::ErrorReply),
-    (status = 422, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
-    (status = 504, response = crate::api::types::error::ErrorReply),
+    PostErrors,
 ))]
 pub async fn policy(
     State(state): State<AppState>,

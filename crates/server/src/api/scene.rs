@@ -6,6 +6,7 @@
 //! kinematics the planner uses). The viewer (`GET /viewer`) draws with
 //! these; so can any client, with no second URDF parser or kinematics.
 
+use crate::api::types::error::PostErrors;
 use axum::extract::{RawQuery, State};
 use nalgebra::{Isometry3, Point3};
 use serde::Deserialize;
@@ -38,12 +39,7 @@ pub const DEFAULT_EXAMPLE_NODES: usize = 15;
     request_body = UrdfRequest,
     responses(
     (status = 200, description = "The tree.", body = TreeResponse),
-    (status = 400, response = crate::api::types::error::ErrorReply),
-    (status = 413, response = crate::api::types::error::ErrorReply),
-    (status = 415, response = crate::api::types::error::ErrorReply),
-    (status = 422, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
-    (status = 504, response = crate::api::types::error::ErrorReply),
+    PostErrors,
 ))]
 pub async fn tree_from_urdf(
     State(state): State<AppState>,
@@ -163,12 +159,7 @@ fn pose7(iso: &Isometry3<f64>) -> [f64; 7] {
     request_body = LinkPosesRequest,
     responses(
     (status = 200, description = "Links, their shapes, and their poses per configuration.", body = LinkPosesResponse),
-    (status = 400, response = crate::api::types::error::ErrorReply),
-    (status = 413, response = crate::api::types::error::ErrorReply),
-    (status = 415, response = crate::api::types::error::ErrorReply),
-    (status = 422, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
-    (status = 504, response = crate::api::types::error::ErrorReply),
+    PostErrors,
 ))]
 pub async fn link_poses(
     State(state): State<AppState>,

@@ -1,6 +1,7 @@
 //! `POST /v1/simulate`: the ground truth of a push from our simulator, so
 //! any prediction can be checked.
 
+use crate::api::types::error::PostErrors;
 use axum::extract::State;
 use serde_json::json;
 
@@ -21,12 +22,7 @@ use treemanip_core::sim::{MAX_PUSH_LENGTH, Push, SimConfig, SimError, simulate a
     request_body = SimulateRequest,
     responses(
     (status = 200, description = "The steady state.", body = SimulateResponse),
-    (status = 400, response = crate::api::types::error::ErrorReply),
-    (status = 413, response = crate::api::types::error::ErrorReply),
-    (status = 415, response = crate::api::types::error::ErrorReply),
-    (status = 422, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
-    (status = 504, response = crate::api::types::error::ErrorReply),
+    PostErrors,
 ))]
 pub async fn simulate(
     State(state): State<AppState>,

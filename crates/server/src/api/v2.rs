@@ -9,6 +9,7 @@ use super::types::v2::{
     InferRequest, InferResponse, LiveResponse, ModelMetadata, ModelReadyResponse, OutputTensor,
     ReadyResponse, ServerMetadata, TensorMetadata,
 };
+use crate::api::types::error::ModelErrors;
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::{Path, State};
@@ -48,8 +49,7 @@ pub async fn live() -> Json<LiveResponse> {
 #[utoipa::path(get, path = "/v2/health/ready", tag = "oip",
     responses(
     (status = 200, description = "Ready.", body = ReadyResponse),
-    (status = 404, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
+    ModelErrors,
 ))]
 pub async fn ready(State(state): State<AppState>) -> Result<Json<ReadyResponse>, ApiError> {
     for name in super::REQUIRED_MODELS {
@@ -93,8 +93,7 @@ fn describe(specs: &[TensorSpec]) -> Vec<TensorMetadata> {
     params(("name" = ModelName, Path)),
     responses(
     (status = 200, description = "Model metadata.", body = ModelMetadata),
-    (status = 404, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
+    ModelErrors,
 ))]
 pub async fn model_metadata(
     State(state): State<AppState>,
@@ -115,8 +114,7 @@ pub async fn model_metadata(
     params(("name" = ModelName, Path)),
     responses(
     (status = 200, description = "Ready.", body = ModelReadyResponse),
-    (status = 404, response = crate::api::types::error::ErrorReply),
-    (status = 503, response = crate::api::types::error::ErrorReply),
+    ModelErrors,
 ))]
 pub async fn model_ready(
     State(state): State<AppState>,

@@ -5,7 +5,7 @@ use axum::http::StatusCode;
 use serde::Serialize;
 use utoipa::openapi::schema::{ObjectBuilder, Schema, Type};
 use utoipa::openapi::{Ref, RefOr, ResponseBuilder, content::ContentBuilder};
-use utoipa::{PartialSchema, ToResponse, ToSchema};
+use utoipa::{IntoResponses, PartialSchema, ToResponse, ToSchema};
 
 use crate::api::types::schema::AnyJson;
 
@@ -144,5 +144,37 @@ impl<'r> ToResponse<'r> for ErrorReply {
                 )
                 .into(),
         )
+    }
+}
+
+/// The statuses at which an endpoint answers [`ErrorReply`], as a set a
+/// handler's `#[utoipa::path(responses(...))]` names once.
+fn errors(
+    statuses: &[u16],
+) -> std::collections::BTreeMap<String, RefOr<utoipa::openapi::Response>> {
+    statuses
+        .iter()
+        .map(|s| (s.to_string(), RefOr::Ref(Ref::from_response_name("Error"))))
+        .collect()
+}
+
+/// A JSON POST endpoint's errors: malformed (400), too large (413), not
+/// JSON (415), unusable (422), not ready or overloaded (503), out of time
+/// (504).
+pub struct PostErrors;
+
+impl IntoResponses for PostErrors {
+    fn responses() -> std::collections::BTreeMap<String, RefOr<utoipa::openapi::Response>> {
+        errors(&[400, 413, 415, 422, 503, 504])
+    }
+}
+
+/// An Open Inference Protocol model endpoint's errors: no such model
+/// (404), not loaded (503).
+pub struct ModelErrors;
+
+impl IntoResponses for ModelErrors {
+    fn responses() -> std::collections::BTreeMap<String, RefOr<utoipa::openapi::Response>> {
+        errors(&[404, 503])
     }
 }

@@ -138,24 +138,7 @@ impl PartialSchema for ModelCard {
             |t: Type| ObjectBuilder::new().schema_type(SchemaType::from_iter([t, Type::Null]));
         let ints = || ArrayBuilder::new().items(integer());
         let free = || ObjectBuilder::new().schema_type(Type::Object);
-        let mut card = object(&[
-            "name",
-            "task",
-            "arch",
-            "architecture",
-            "feature_layout_version",
-            "normalisation",
-            "training_data",
-            "training_command",
-            "training_commands",
-            "training_config",
-            "seed",
-            "git_commit",
-            "training",
-            "validation",
-            "units",
-            "domain",
-        ])
+        let mut card = object(&treemanip_core::model::card::KEYS)
         .description(Some(
             "The model's card, written by the exporter into the ONNX file's metadata_props (one key per field) and read back as one typed record (`crates/core/src/model/card.rs`).",
         ));
