@@ -1,4 +1,4 @@
-//! `treemanip robot`: inspect an arm's URDF.
+//! `treemanip robot`: inspect an arm's URDF, import it, check it.
 
 use std::path::PathBuf;
 
@@ -20,6 +20,28 @@ pub enum RobotCommand {
     /// (TOML naming the URDF; see docs/robot.md): it loads without the
     /// URDF or its meshes.
     Import(ImportArgs),
+    /// Check an arm before planning with it: its chain, tool frame, reach
+    /// and limits, the share of random configurations free of
+    /// self-collision (and the pairs that block the rest), IK on random
+    /// reachable poses, and how many stance test pushes it carries out;
+    /// exits 1 when it cannot plan at all.
+    Check(CheckArgs),
+}
+
+#[derive(Args)]
+pub struct CheckArgs {
+    /// The arm, as `--robot` takes it: `ur5`, a shipped name (`panda`), a
+    /// description or URDF path, or `NAME=PATH[,tip=LINK][,base=LINK]`.
+    spec: String,
+    /// Directories that contain package folders, for `package://` meshes.
+    #[arg(long = "package-path", value_delimiter = ':')]
+    package_path: Vec<PathBuf>,
+    /// Random configurations sampled for self-collision.
+    #[arg(long, default_value_t = treemanip::robot::check::SAMPLES)]
+    samples: usize,
+    /// Seed of the samples.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
 }
 
 #[derive(Args)]
@@ -59,6 +81,19 @@ pub fn run(command: RobotCommand) -> anyhow::Result<()> {
     match command {
         RobotCommand::Shapes(args) => shapes(args),
         RobotCommand::Import(args) => import(args),
+        RobotCommand::Check(args) => check(args),
+    }
+}
+
+fn check(args: CheckArgs) -> anyhow::Result<()> {
+    let packages = package_path(&args.package_path);
+    let arm = treemanip::robot::catalog::resolve(&args.spec, &packages)
+        .with_context(|| format!("loading {}", args.spec))?;
+    let report = treemanip::robot::check::check(&arm, args.samples, args.seed);
+    print!("{report}");
+    match report.fatal() {
+        Some(why) => anyhow::bail!("{} cannot plan: {why}", report.name),
+        None => Ok(()),
     }
 }
 

@@ -15,6 +15,10 @@ use crate::robot::model::urdf_chain::parse_urdf;
 use crate::robot::model::urdf_chain::random_configuration;
 use crate::robot::motion::rrt::distance;
 
+/// The fewest joints an arm may have: the ⊔ push needs the tool's full
+/// pose (position, push axis and slot orientation).
+pub const MIN_DOF: usize = 6;
+
 /// The built-in arm's name.
 pub const BUILT_IN: &str = "ur5";
 
@@ -187,6 +191,12 @@ pub fn load(spec: &RobotSpec, packages: &[PathBuf]) -> Result<Arm, DescriptionEr
         file: spec.path.clone(),
         message,
     };
+    if description.dof < MIN_DOF {
+        return Err(fail(format!(
+            "{} has {} joints from {} to {}: pushing with the ⊔ tool needs a full tool pose, {MIN_DOF} or more joints (name another tip link with `tip=LINK`)",
+            spec.name, description.dof, description.base_link, description.tip_link
+        )));
+    }
     let arm = Arm::from_description(&description).map_err(fail)?;
     let home = free_home(&arm).ok_or_else(|| {
         fail(

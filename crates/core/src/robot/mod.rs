@@ -26,6 +26,7 @@
 
 pub mod arm;
 pub mod catalog;
+pub mod check;
 pub mod collision;
 pub mod kinematics;
 pub mod model;

@@ -6,6 +6,7 @@ mod common;
 mod graph_encoding;
 mod identify;
 mod robot_chain;
+mod robot_check;
 mod robot_collision;
 mod robot_description;
 mod robot_geometry;

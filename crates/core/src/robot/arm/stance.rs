@@ -102,9 +102,19 @@ impl Arm {
     /// How many of the [`PROBE_PUSHES`] test pushes this arm can carry
     /// out from `stance` (base upright at its own pose, facing +x).
     pub fn push_score(&self, stance: &BaseStance) -> usize {
+        self.push_score_with(stance, &|_: &JointVector, _: &JointVector, _: f64| true)
+    }
+
+    /// As [`Self::push_score`], with every configuration of the push (the
+    /// pre-contact one included) also passing `valid` (a collision check,
+    /// say).
+    pub fn push_score_with(
+        &self,
+        stance: &BaseStance,
+        valid: &dyn Fn(&JointVector, &JointVector, f64) -> bool,
+    ) -> usize {
         let home = self.home();
         let grip = Vector3::new(stance.stand_off, 0.0, stance.height);
-        let anywhere = |_: &JointVector, _: &JointVector, _: f64| true;
         probe_rotations()
             .iter()
             .filter(|rotation| {
@@ -116,8 +126,9 @@ impl Arm {
                     );
                 let direction = self.base.rotation * z;
                 self.inverse_kinematics(&start, &home).iter().any(|q| {
-                    push_line(self, &anywhere, q, &direction, PROBE_PUSH + APPROACH_OFFSET)
-                        .is_some()
+                    valid(q, q, 0.0)
+                        && push_line(self, valid, q, &direction, PROBE_PUSH + APPROACH_OFFSET)
+                            .is_some()
                 })
             })
             .count()

@@ -9,6 +9,7 @@ use crate::geometry::convert::vec3;
 use crate::geometry::shape::Shape;
 use crate::robot::arm::Arm;
 use crate::robot::model::joint_vector::{JointVector, MAX_DOF};
+use crate::robot::model::self_pairs::OFTEN;
 use crate::tree::Tree;
 
 use crate::geometry::aabb::Aabb;
@@ -247,9 +248,11 @@ impl CollisionModel {
     }
 
     /// Drops the self-collision pairs of the added ⊔ gripper with a link
-    /// that it touches in every one of [`GRIPPER_PAIR_SAMPLES`] random
-    /// configurations (a hand it is bolted past, say): the description's
-    /// sampling could not know of the gripper.
+    /// that it touches in at least [`OFTEN`] of [`GRIPPER_PAIR_SAMPLES`]
+    /// random configurations (a hand it is bolted past, a wrist housing
+    /// whose fitted capsule reaches past the flange), as the description's
+    /// sampler does for the arm's own pairs: it could not know of the
+    /// gripper.
     pub(super) fn drop_gripper_pairs_always_touching(&mut self) {
         let Some(gripper) = self
             .robot
@@ -266,7 +269,7 @@ impl CollisionModel {
         if candidates.is_empty() {
             return;
         }
-        let mut always = vec![true; self.self_pairs.len()];
+        let mut touching = vec![0usize; self.self_pairs.len()];
         let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(7);
         for _ in 0..GRIPPER_PAIR_SAMPLES {
             let q =
@@ -274,12 +277,13 @@ impl CollisionModel {
             let world = self.world_shapes(&q, 0.0);
             for &k in &candidates {
                 let (i, j) = self.self_pairs[k];
-                always[k] &= intersects(&world[i].0, &world[j].0);
+                touching[k] += usize::from(intersects(&world[i].0, &world[j].0));
             }
         }
         let mut k = 0;
         self.self_pairs.retain(|_| {
-            let keep = !(candidates.contains(&k) && always[k]);
+            let often = touching[k] as f64 >= OFTEN * GRIPPER_PAIR_SAMPLES as f64;
+            let keep = !(candidates.contains(&k) && often);
             k += 1;
             keep
         });
@@ -441,5 +445,25 @@ impl CollisionModel {
             }
         }
         None
+    }
+
+    /// Every checked self-collision pair in contact at `q` (link names), as
+    /// [`Self::check`] sees them but all of them, not the first: for
+    /// reports of which pairs block an arm.
+    pub fn self_contacts(&self, q: &[f64]) -> Vec<(&str, &str)> {
+        let world = self.world_shapes(q, SELF_CLEARANCE / 2.0);
+        let mut out: Vec<(&str, &str)> = Vec::new();
+        for &(i, j) in &self.self_pairs {
+            if world[i].1.overlaps(&world[j].1) && intersects(&world[i].0, &world[j].0) {
+                let pair = (
+                    self.names[self.shapes[i].link].as_str(),
+                    self.names[self.shapes[j].link].as_str(),
+                );
+                if !out.contains(&pair) {
+                    out.push(pair);
+                }
+            }
+        }
+        out
     }
 }

@@ -7,7 +7,11 @@
 //! - **never**: no collision at any of `samples` random configurations
 //!   inside the joint limits (the pair cannot reach each other);
 //! - **always**: a collision at every sample (the shapes overlap whatever
-//!   the joints do: a checker would refuse every configuration).
+//!   the joints do: a checker would refuse every configuration);
+//! - **often**: a collision in at least [`OFTEN`] of the samples, MoveIt's
+//!   default "often in collision" (95 %): fitted shapes that overlap in
+//!   nearly every pose (a base housing and the upper arm two joints on)
+//!   would otherwise refuse nearly every configuration.
 //!
 //! Every other pair collides at some configurations and not at others and
 //! stays checked. Joints off the chain (fingers, a gripper) stay at zero,
@@ -34,11 +38,17 @@ pub enum DisableReason {
     Adjacent,
     Never,
     Always,
+    /// In collision in at least [`OFTEN`] of the samples.
+    Often,
     /// Named in the robot's configuration.
     Configured,
     /// Named in the robot's SRDF.
     Srdf,
 }
+
+/// The share of samples in collision above which a pair is disabled as
+/// [`DisableReason::Often`] (MoveIt setup assistant's default).
+pub const OFTEN: f64 = 0.95;
 
 /// A pair of links left out of self-collision checks.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -269,6 +279,7 @@ pub fn disabled_pairs(
         let reason = match h {
             0 => DisableReason::Never,
             h if h == samples => DisableReason::Always,
+            h if h as f64 >= OFTEN * samples as f64 => DisableReason::Often,
             _ => continue,
         };
         out.push(DisabledPair {

@@ -1,0 +1,111 @@
+//! `robot::check` and what it stands for: arms from a bare URDF whose
+//! fitted shapes overlap in nearly every pose get those pairs disabled (the
+//! ROS-Industrial UR10 with `tip=tool0` could not plan at all before), a
+//! tool turned into the arm is reported as unable to push, and an arm of
+//! fewer than six joints is refused at load with why.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use treemanip_core::robot::catalog::{load, load_description};
+use treemanip_core::robot::check::check;
+use treemanip_core::robot::model::self_pairs::DisableReason;
+use treemanip_core::robot::{Arm, catalog::RobotSpec};
+
+/// example-robot-data's robots folder, or `None` (the test then says why
+/// it skipped, unless Python is required).
+fn robot_data() -> Option<PathBuf> {
+    let out = Command::new("python3")
+        .args([
+            "-c",
+            "import sysconfig, os; print(os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share', 'example-robot-data', 'robots'))",
+        ])
+        .output()
+        .ok()?;
+    let path = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
+    if out.status.success() && path.is_dir() {
+        return Some(path);
+    }
+    assert!(
+        std::env::var_os("TREEMANIP_REQUIRE_PYTHON").is_none(),
+        "example-robot-data is required (pip install -r requirements-dev.txt)"
+    );
+    eprintln!("skipped: example-robot-data is not installed");
+    None
+}
+
+fn spec(text: &str) -> RobotSpec {
+    text.parse().unwrap()
+}
+
+#[test]
+fn a_bare_ur10_urdf_with_its_tool0_can_push() {
+    let Some(erd) = robot_data() else { return };
+    let s = spec(&format!(
+        "ur10ri={}/ur_description/urdf/ur10_robot.urdf,tip=tool0",
+        erd.display()
+    ));
+    let description = load_description(&s, std::slice::from_ref(&erd)).unwrap();
+    // The base housing and the upper arm's fitted capsules overlap in
+    // nearly every pose (about 99 %): disabled as MoveIt would.
+    let often = description
+        .disabled_pairs
+        .iter()
+        .find(|p| {
+            [p.a.as_str(), p.b.as_str()] == ["base_link", "upper_arm_link"]
+                || [p.b.as_str(), p.a.as_str()] == ["base_link", "upper_arm_link"]
+        })
+        .expect("base_link–upper_arm_link is disabled");
+    assert_eq!(often.reason, DisableReason::Often);
+    let arm = load(&s, &[erd]).unwrap();
+    let report = check(&arm, 500, 1);
+    assert!(report.fatal().is_none(), "{report}");
+    assert!(report.self_free > 0.3, "{report}");
+    assert!(report.pushes_free >= 12, "{report}");
+    assert_eq!(report.ik.0, report.ik.1, "{report}");
+}
+
+/// The shipped UR10 with its tool turned to point back into the wrist (a
+/// half turn about x) is named as unable to push, and why.
+#[test]
+fn a_tool_pointing_into_the_arm_cannot_push() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../robots");
+    let text = std::fs::read_to_string(dir.join("ur10.toml")).unwrap();
+    let mut description =
+        treemanip_core::robot::model::description::RobotDescription::from_toml_str(
+            &text,
+            &dir.join("ur10.toml"),
+        )
+        .unwrap();
+    let good = check(&Arm::from_description(&description).unwrap(), 300, 1);
+    assert!(good.fatal().is_none(), "{good}");
+    description.tool.mount.rpy[0] += std::f64::consts::PI;
+    let flipped = check(&Arm::from_description(&description).unwrap(), 300, 1);
+    let why = flipped.fatal().expect("a flipped tool cannot push");
+    assert!(why.contains("points back into the arm"), "{why}");
+    assert!(good.tool_outward.unwrap() > 0.9, "{good}");
+}
+
+/// A four-joint arm is refused at load, naming its joints and why.
+#[test]
+fn an_arm_of_four_joints_is_refused_with_why() {
+    let mut urdf = String::from("<robot name=\"four\"><link name=\"l0\"/>");
+    for k in 1..=4 {
+        urdf.push_str(&format!(
+            "<link name=\"l{k}\"><collision><geometry><cylinder radius=\"0.03\" length=\"0.2\"/></geometry></collision></link>\
+             <joint name=\"j{k}\" type=\"revolute\"><parent link=\"l{}\"/><child link=\"l{k}\"/>\
+             <origin xyz=\"0 0 0.2\"/><axis xyz=\"0 {} 1\"/><limit lower=\"-2\" upper=\"2\" velocity=\"1\" effort=\"1\"/></joint>",
+            k - 1,
+            k % 2
+        ));
+    }
+    urdf.push_str("</robot>");
+    let dir = std::env::temp_dir().join(format!("treemanip-four-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("four.urdf");
+    std::fs::write(&path, urdf).unwrap();
+    let err = load(&spec(&format!("four={}", path.display())), &[]).unwrap_err();
+    let message = err.to_string();
+    assert!(message.contains("4 joints"), "{message}");
+    assert!(message.contains("6 or more"), "{message}");
+}
