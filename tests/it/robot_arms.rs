@@ -23,12 +23,7 @@ pub const SHIPPED: [&str; 4] = ["ur5", "ur10", "panda", "iiwa"];
 
 /// A shipped description by name.
 pub fn shipped(name: &str) -> Arm {
-    let spec = RobotSpec {
-        name: name.to_owned(),
-        path: format!("robots/{name}.toml").into(),
-        tip: None,
-        base: None,
-    };
+    let spec = RobotSpec::at(name.to_owned(), format!("robots/{name}.toml").into());
     catalog::load(&spec, &[]).unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 

@@ -98,6 +98,9 @@ pub struct Arm {
     tool: usize,
     home: JointVector,
     disabled_pairs: Vec<(String, String)>,
+    /// How the tool's mount was chosen (`flange axis: joint ...`, `frame
+    /// tool0`, `configured`).
+    tool_chosen: String,
     /// World pose of the chain's base link.
     pub base: Isometry3<f64>,
     /// Where a mobile base stands for a push ([`Arm::stances`]).
@@ -285,6 +288,11 @@ impl Arm {
             tip,
             tool,
             home,
+            tool_chosen: d
+                .tool
+                .chosen
+                .clone()
+                .unwrap_or_else(|| "configured".to_owned()),
             disabled_pairs: d
                 .disabled_pairs
                 .iter()
@@ -508,7 +516,15 @@ impl Arm {
         self.link_poses(q)[self.tool]
     }
 
-    /// The tool frame in the tip's frame.
+    /// How the tool's mount was chosen: `flange axis: joint ...` (a bare
+    /// URDF's default), `frame NAME` (`tool=NAME`), `configured` (a
+    /// robot configuration's `[tool]`), each possibly `adjusted by
+    /// tool_xyz/tool_rpy`.
+    pub fn tool_chosen(&self) -> &str {
+        &self.tool_chosen
+    }
+
+    /// The tool frame in the tip link's frame.
     pub fn tool_in_tip(&self) -> Isometry3<f64> {
         self.links[self.tool].origin
     }

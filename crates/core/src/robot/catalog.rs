@@ -11,6 +11,7 @@ use crate::robot::model::description::{
 };
 use crate::robot::model::import::{Blame, describe, import};
 use crate::robot::model::joint_vector::JointVector;
+use crate::robot::model::tool_mount::{ChosenMount, ToolChoice, adjusted};
 use crate::robot::model::urdf_chain::parse_urdf;
 use crate::robot::model::urdf_chain::random_configuration;
 use crate::robot::motion::rrt::distance;
@@ -29,14 +30,70 @@ pub struct RobotSpec {
     pub path: PathBuf,
     pub tip: Option<String>,
     pub base: Option<String>,
+    /// `tool=FRAME`: the URDF frame (the tip or a link it carries) whose z
+    /// is the push axis (default: the last joint's axis, out of the wrist).
+    pub tool: Option<String>,
+    /// `tool_xyz=[x,y,z]` (m) and `tool_rpy=[r,p,y]` (rad): the chosen
+    /// tool mount moved and turned in its own frame.
+    pub tool_xyz: Option<[f64; 3]>,
+    pub tool_rpy: Option<[f64; 3]>,
+}
+
+impl RobotSpec {
+    /// The arm at `path`, named `name`, with no options.
+    pub fn at(name: String, path: PathBuf) -> Self {
+        Self {
+            name,
+            path,
+            tip: None,
+            base: None,
+            tool: None,
+            tool_xyz: None,
+            tool_rpy: None,
+        }
+    }
+}
+
+/// `text` split at commas outside brackets (`a=x,tool_xyz=[0,0,0.1]`).
+fn split_options(text: &str) -> Vec<&str> {
+    let (mut out, mut depth, mut start) = (Vec::new(), 0i32, 0);
+    for (i, c) in text.char_indices() {
+        match c {
+            '[' => depth += 1,
+            ']' => depth -= 1,
+            ',' if depth == 0 => {
+                out.push(&text[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(&text[start..]);
+    out
+}
+
+/// `[x,y,z]` (brackets optional): three finite numbers.
+fn triple(text: &str, what: &str) -> Result<[f64; 3], String> {
+    let inner = text.trim().trim_start_matches('[').trim_end_matches(']');
+    let values: Vec<f64> = inner
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{what}={text}: expected [x,y,z], three numbers"))?;
+    match values.as_slice() {
+        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok([*x, *y, *z]),
+        _ => Err(format!(
+            "{what}={text}: expected [x,y,z], three finite numbers"
+        )),
+    }
 }
 
 impl std::str::FromStr for RobotSpec {
     type Err = String;
 
-    /// `NAME=PATH[,tip=LINK][,base=LINK]`.
+    /// `NAME=PATH[,tip=LINK][,base=LINK][,tool=FRAME][,tool_xyz=[x,y,z]][,tool_rpy=[r,p,y]]`.
     fn from_str(text: &str) -> Result<Self, String> {
-        let mut parts = text.split(',');
+        let mut parts = split_options(text).into_iter();
         let head = parts.next().unwrap_or_default();
         let (name, path) = head
             .split_once('=')
@@ -54,19 +111,23 @@ impl std::str::FromStr for RobotSpec {
         if path.is_empty() {
             return Err(format!("`{text}`: no path"));
         }
-        let mut spec = RobotSpec {
-            name: name.to_owned(),
-            path: PathBuf::from(path),
-            tip: None,
-            base: None,
-        };
+        let mut spec = RobotSpec::at(name.to_owned(), PathBuf::from(path));
         for part in parts {
             match part.split_once('=') {
                 Some(("tip", link)) if !link.is_empty() => spec.tip = Some(link.to_owned()),
                 Some(("base", link)) if !link.is_empty() => spec.base = Some(link.to_owned()),
+                Some(("tool", link)) if !link.is_empty() => spec.tool = Some(link.to_owned()),
+                Some(("tool_xyz", v)) => {
+                    spec.tool_xyz =
+                        Some(triple(v, "tool_xyz").map_err(|e| format!("`{text}`: {e}"))?)
+                }
+                Some(("tool_rpy", v)) => {
+                    spec.tool_rpy =
+                        Some(triple(v, "tool_rpy").map_err(|e| format!("`{text}`: {e}"))?)
+                }
                 _ => {
                     return Err(format!(
-                        "`{text}`: unknown option `{part}` (tip=LINK or base=LINK)"
+                        "`{text}`: unknown option `{part}` (tip=LINK, base=LINK, tool=FRAME, tool_xyz=[x,y,z] or tool_rpy=[r,p,y])"
                     ));
                 }
             }
@@ -96,12 +157,7 @@ pub fn folder(dir: &Path) -> Result<Vec<RobotSpec>, DescriptionError> {
         .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "toml"))
         .filter_map(|path| {
             let name = path.file_stem()?.to_str()?.to_owned();
-            (name != BUILT_IN).then_some(RobotSpec {
-                name,
-                path,
-                tip: None,
-                base: None,
-            })
+            (name != BUILT_IN).then(|| RobotSpec::at(name, path))
         })
         .collect();
     specs.sort_by(|a, b| a.name.cmp(&b.name));
@@ -133,23 +189,43 @@ pub fn load_description(
     let text = std::fs::read_to_string(&spec.path)
         .map_err(|e| fail(&spec.path, format!("cannot be read: {e}")))?;
     let is_toml = spec.path.extension().is_some_and(|e| e == "toml");
+    let adjust = (spec.tool_xyz.is_some() || spec.tool_rpy.is_some()).then(|| {
+        (
+            spec.tool_xyz.unwrap_or_default(),
+            spec.tool_rpy.unwrap_or_default(),
+        )
+    });
     let mut description = if is_toml {
-        if spec.tip.is_some() || spec.base.is_some() {
+        if spec.tip.is_some() || spec.base.is_some() || spec.tool.is_some() {
             return Err(fail(
                 &spec.path,
-                "an imported description's chain is fixed: re-import it for another tip or base"
+                "an imported description's chain and tool frame are fixed: re-import it for another tip, base or tool frame (tool_xyz/tool_rpy adjust it)"
                     .to_owned(),
             ));
         }
         let is_config = toml::from_str::<toml::Table>(&text)
             .is_ok_and(|t| t.contains_key("urdf") && !t.contains_key("source"));
-        if is_config {
+        let mut description = if is_config {
             // A configuration naming its URDF: imported now.
             let command = format!("--robot {}={}", spec.name, spec.path.display());
             import(&spec.path, packages, &command)?
         } else {
             RobotDescription::from_toml_str(&text, &spec.path)?
+        };
+        if let Some((xyz, rpy)) = adjust {
+            let chosen = ChosenMount {
+                mount: description.tool.mount.isometry(),
+                how: description
+                    .tool
+                    .chosen
+                    .clone()
+                    .unwrap_or_else(|| "configured".to_owned()),
+            };
+            let moved = adjusted(chosen, xyz, rpy);
+            description.tool.mount = (&moved.mount).into();
+            description.tool.chosen = Some(moved.how);
         }
+        description
     } else {
         let robot = parse_urdf(&text).map_err(|e| fail(&spec.path, e.to_string()))?;
         let config = RobotConfig {
@@ -164,6 +240,11 @@ pub fn load_description(
             srdf: None,
             licence: String::new(),
             tool: Default::default(),
+            tool_choice: match &spec.tool {
+                Some(frame) => ToolChoice::Frame(frame.clone()),
+                None => ToolChoice::FlangeAxis,
+            },
+            tool_adjust: adjust,
         };
         let command = format!("--robot {}={}", spec.name, spec.path.display());
         describe(
@@ -267,12 +348,7 @@ pub fn resolve(text: &str, packages: &[PathBuf]) -> Result<Arm, DescriptionError
         let name = path
             .file_stem()
             .map_or_else(|| text.to_owned(), |s| s.to_string_lossy().into_owned());
-        RobotSpec {
-            name,
-            path,
-            tip: None,
-            base: None,
-        }
+        RobotSpec::at(name, path)
     };
     load(&spec, packages)
 }

@@ -34,8 +34,9 @@ pub struct CheckReport {
     pub tip_link: String,
     /// Per joint: name, kind, lower, upper, velocity (rad or m, per s).
     pub joints: Vec<(String, &'static str, f64, f64, f64)>,
-    /// The tool frame in the tip link's frame.
+    /// The tool frame in the tip link's frame, and how it was chosen.
     pub tool_in_tip: Isometry3<f64>,
+    pub tool_chosen: String,
     /// At home, the cosine between the tool's push axis (z) and the
     /// direction from the last joint's axis to the tool: near 1 the tool
     /// points out of the wrist, below 0 back into the arm (`None` when the
@@ -161,6 +162,7 @@ pub fn check(arm: &Arm, samples: usize, seed: u64) -> CheckReport {
             .map(|j| (j.name.clone(), j.kind.name(), j.lower, j.upper, j.velocity))
             .collect(),
         tool_in_tip: robot.tool_in_tip(),
+        tool_chosen: robot.tool_chosen().to_owned(),
         tool_outward,
         reach: robot.reach(),
         self_free: share(free),
@@ -246,8 +248,8 @@ impl fmt::Display for CheckReport {
         let (r, p, y) = UnitQuaternion::euler_angles(&self.tool_in_tip.rotation);
         writeln!(
             f,
-            "tool frame in {}: xyz [{:.3}, {:.3}, {:.3}] m, rpy [{r:.3}, {p:.3}, {y:.3}] rad; push axis (z) [{:.2}, {:.2}, {:.2}]",
-            self.tip_link, t.x, t.y, t.z, z.x, z.y, z.z
+            "tool frame in {}: xyz [{:.3}, {:.3}, {:.3}] m, rpy [{r:.3}, {p:.3}, {y:.3}] rad; push axis (z) [{:.2}, {:.2}, {:.2}]; chosen by {}",
+            self.tip_link, t.x, t.y, t.z, z.x, z.y, z.z, self.tool_chosen
         )?;
         if let Some(c) = self.tool_outward {
             writeln!(

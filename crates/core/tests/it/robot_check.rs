@@ -109,3 +109,84 @@ fn an_arm_of_four_joints_is_refused_with_why() {
     assert!(message.contains("4 joints"), "{message}");
     assert!(message.contains("6 or more"), "{message}");
 }
+
+/// With only a URDF and its last arm link, the tool goes on the last
+/// joint's axis, out of the wrist and past the hand: the Jaco2's link 6
+/// has its z back into the wrist (the mount is turned round, 0.17 m out,
+/// past the fingers), the Z1's last joint turns about x (the mount is
+/// turned onto x). Both then push in front of themselves.
+#[test]
+fn the_tool_frame_comes_from_the_chain() {
+    let Some(erd) = robot_data() else { return };
+    let jaco = load(
+        &spec(&format!(
+            "jaco={}/kinova_description/robots/kinova.urdf,tip=j2s6s200_link_6",
+            erd.display()
+        )),
+        std::slice::from_ref(&erd),
+    )
+    .unwrap();
+    assert!(
+        jaco.tool_chosen()
+            .starts_with("flange axis: joint `j2s6s200_joint_6`")
+    );
+    assert!(
+        jaco.tool_chosen().contains("against its axis"),
+        "{}",
+        jaco.tool_chosen()
+    );
+    let z = jaco.tool_in_tip().rotation * nalgebra::Vector3::z();
+    assert!(z.z < -0.99, "{z}");
+    let report = check(&jaco, 300, 1);
+    assert!(report.tool_outward.unwrap() > 0.9, "{report}");
+    assert!(report.pushes_free >= 15, "{report}");
+
+    let z1 = load(
+        &spec(&format!(
+            "z1={}/z1_description/urdf/z1.urdf,tip=link06",
+            erd.display()
+        )),
+        std::slice::from_ref(&erd),
+    )
+    .unwrap();
+    let z = z1.tool_in_tip().rotation * nalgebra::Vector3::z();
+    assert!(z.x > 0.99, "the Z1's last joint turns about x: {z}");
+
+    // tool=FRAME names the frame; one the tip does not carry is refused.
+    let ur10 = |extra: &str| {
+        load(
+            &spec(&format!(
+                "ur10ri={}/ur_description/urdf/ur10_robot.urdf,tip=tool0{extra}",
+                erd.display()
+            )),
+            std::slice::from_ref(&erd),
+        )
+    };
+    let framed = ur10(",tool=tool0").unwrap();
+    assert_eq!(framed.tool_chosen(), "frame tool0");
+    let err = ur10(",tool=forearm_link").unwrap_err().to_string();
+    assert!(err.contains("not the tip"), "{err}");
+    // tool_xyz moves the chosen mount along its own axes.
+    let moved = ur10(",tool=tool0,tool_xyz=[0,0,0.05]").unwrap();
+    let dz = moved.tool_in_tip().translation.z - framed.tool_in_tip().translation.z;
+    assert!((dz - 0.05).abs() < 1e-9, "{dz}");
+    assert!(
+        moved
+            .tool_chosen()
+            .ends_with("adjusted by tool_xyz/tool_rpy")
+    );
+}
+
+#[test]
+fn tool_options_parse_or_say_what_is_wrong() {
+    let s = spec("a=x.urdf,tip=t,tool=tool0,tool_xyz=[0,0,0.1],tool_rpy=[1.5,0,0]");
+    assert_eq!(s.tool.as_deref(), Some("tool0"));
+    assert_eq!(s.tool_xyz, Some([0.0, 0.0, 0.1]));
+    assert_eq!(s.tool_rpy, Some([1.5, 0.0, 0.0]));
+    let err = "a=x.urdf,tool_xyz=[0,0]".parse::<RobotSpec>().unwrap_err();
+    assert!(err.contains("three"), "{err}");
+    let err = "a=x.urdf,tool_xyz=[0,nan,0]"
+        .parse::<RobotSpec>()
+        .unwrap_err();
+    assert!(err.contains("finite"), "{err}");
+}

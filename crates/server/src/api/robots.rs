@@ -35,6 +35,7 @@ impl RobotJsonInfo {
                 xyz: [t.x, t.y, t.z],
                 rpy: [r, p, y],
             },
+            tool_chosen: arm.tool_chosen().to_owned(),
             base_link: arm.base_link().to_owned(),
             home: arm.home().to_vec(),
             closed_form_ik: arm.has_closed_form_ik(),

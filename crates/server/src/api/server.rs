@@ -66,10 +66,12 @@ pub struct ServeArgs {
     #[arg(long, env = "TREEMANIP_SKIP_BROKEN_MODELS")]
     skip_broken_models: bool,
     /// An arm to plan for besides the built-in `ur5`:
-    /// `NAME=PATH[,tip=LINK][,base=LINK]`, PATH an imported description
-    /// (`robots/panda.toml`) or a URDF (meshes resolve through
-    /// `TREEMANIP_PACKAGE_PATH`). Repeatable; the first is the default
-    /// robot. `TREEMANIP_ROBOTS` lists them separated by `;`.
+    /// `NAME=PATH[,tip=LINK][,base=LINK][,tool=FRAME][,tool_xyz=[x,y,z]][,tool_rpy=[r,p,y]]`,
+    /// PATH an imported description (`robots/panda.toml`) or a URDF
+    /// (meshes resolve through `TREEMANIP_PACKAGE_PATH`; the tool goes on
+    /// the last joint's axis out of the wrist unless `tool=FRAME` names
+    /// its frame). Repeatable; the first is the default robot.
+    /// `TREEMANIP_ROBOTS` lists them separated by `;`.
     #[arg(long = "robot", env = "TREEMANIP_ROBOTS", value_delimiter = ';')]
     robots: Vec<treemanip_core::robot::catalog::RobotSpec>,
     /// A folder of imported descriptions (`treemanip robot import`), each
@@ -209,7 +211,7 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     {
         match treemanip_core::robot::catalog::load(spec, &packages) {
             Ok(arm) => {
-                tracing::info!(robot = %spec.name, path = %spec.path.display(), dof = arm.dof(), closed_form_ik = arm.has_closed_form_ik(), "robot loaded");
+                tracing::info!(robot = %spec.name, path = %spec.path.display(), dof = arm.dof(), closed_form_ik = arm.has_closed_form_ik(), tool = %arm.tool_chosen(), "robot loaded");
                 if given { &mut arms } else { &mut catalog }.push(arm);
             }
             Err(e) if args.skip_broken_robots => {

@@ -46,6 +46,16 @@ fn the_server_plans_for_the_arm_each_request_names() {
     assert_eq!(panda["base_link"], "panda_link0");
     assert_eq!(panda["tool_link"], "panda_hand");
     assert!((panda["tool_frame"]["xyz"][2].as_f64().unwrap() - 0.18).abs() < 1e-9);
+    // Each says how its tool frame was chosen.
+    assert_eq!(panda["tool_chosen"], "configured");
+    assert!(
+        robots[0]["tool_chosen"]
+            .as_str()
+            .unwrap()
+            .starts_with("built in"),
+        "{}",
+        robots[0]
+    );
     assert_eq!(robots[0]["closed_form_ik"], true);
     assert_eq!(panda["closed_form_ik"], false);
 

@@ -25,6 +25,7 @@
 //! self-collision pairs left unchecked and why, the home configuration,
 //! and where it all came from.
 
+use crate::robot::model::tool_mount::ToolChoice;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -95,6 +96,14 @@ pub struct RobotConfig {
     /// the tip's origin, pushing along its z).
     #[serde(default)]
     pub tool: ToolSpec,
+    /// How the tool is placed (a bare URDF's: on the last joint's axis, or
+    /// `tool=FRAME`); a configuration file's `[tool]` is taken as it is.
+    #[serde(skip)]
+    pub tool_choice: ToolChoice,
+    /// `tool_xyz`/`tool_rpy` of a `--robot` specification: the chosen
+    /// mount moved and turned by them.
+    #[serde(skip)]
+    pub tool_adjust: Option<([f64; 3], [f64; 3])>,
 }
 
 /// Where the pusher tool sits on the tip link, and optionally the user's
@@ -131,6 +140,10 @@ pub struct ToolSpec {
     /// x).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frame: Option<PoseSpec>,
+    /// How `mount` was chosen (`flange axis: joint ...`, `frame tool0`);
+    /// absent: configured by hand.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chosen: Option<String>,
 }
 
 fn yes() -> bool {
@@ -144,6 +157,7 @@ impl Default for ToolSpec {
             gripper: true,
             shapes: None,
             frame: None,
+            chosen: None,
         }
     }
 }

@@ -1,17 +1,21 @@
 //! `import`: a robot configuration and its URDF become a self-contained
 //! [`RobotDescription`] (chain, fitted shapes, limits, disabled pairs).
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+
+use nalgebra::Isometry3;
 
 use crate::robot::model::description::{
     DEFAULT_ACCELERATION, DEFAULT_LINEAR_ACCELERATION, DescriptionError, JointSpec, LinkSpec,
-    Provenance, RobotConfig, RobotDescription, SELF_COLLISION_SAMPLES, arr, shape_spec,
+    Provenance, RobotConfig, RobotDescription, SELF_COLLISION_SAMPLES, ToolSpec, arr, shape_spec,
 };
-use crate::robot::model::link_geometry::link_geometry;
+use crate::robot::model::link_geometry::{LinkGeometry, link_geometry};
 use crate::robot::model::self_pairs::{
     DisableReason, DisabledPair, all_link_poses, disabled_pairs,
 };
 use crate::robot::model::srdf::{SrdfPair, disabled_collisions};
+use crate::robot::model::tool_mount::{ChosenMount, ToolChoice, adjusted, flange_axis, frame};
 use crate::robot::model::urdf_chain::{Chain, JointKind, parse_urdf};
 
 /// Imports the robot that the configuration at `config_path` describes:
@@ -106,6 +110,42 @@ fn add_pair(pairs: &mut Vec<DisabledPair>, a: &str, b: &str, reason: DisableReas
     }
 }
 
+/// The configuration's tool, placed as its [`ToolChoice`] and
+/// `tool_adjust` say ([`crate::robot::model::tool_mount`]).
+fn place_tool(
+    config: &RobotConfig,
+    robot: &urdf_rs::Robot,
+    chain: &Chain,
+    geometry: &[LinkGeometry],
+    poses: &HashMap<String, Isometry3<f64>>,
+) -> Result<ToolSpec, String> {
+    let mut tool = config.tool.clone();
+    let chosen = match &config.tool_choice {
+        ToolChoice::Configured => None,
+        ToolChoice::FlangeAxis => Some(flange_axis(robot, chain, geometry, poses)?),
+        ToolChoice::Frame(name) => Some(frame(robot, chain, poses, name)?),
+    };
+    let chosen = match (chosen, config.tool_adjust) {
+        (chosen, Some((xyz, rpy))) => Some(adjusted(
+            chosen.unwrap_or_else(|| ChosenMount {
+                mount: tool.mount.isometry(),
+                how: tool
+                    .chosen
+                    .clone()
+                    .unwrap_or_else(|| "configured".to_owned()),
+            }),
+            xyz,
+            rpy,
+        )),
+        (chosen, None) => chosen,
+    };
+    if let Some(c) = chosen {
+        tool.mount = (&c.mount).into();
+        tool.chosen = Some(c.how);
+    }
+    Ok(tool)
+}
+
 /// Which file a problem of [`describe`] lies in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Blame {
@@ -191,6 +231,8 @@ pub fn describe(
     // Each link with shapes, on the chain link it rides on.
     let zero = vec![0.0; dof];
     let poses = all_link_poses(robot, &chain, &zero);
+    let tool =
+        place_tool(&config, robot, &chain, &geometry, &poses).map_err(|m| fail(&config_path, m))?;
     let chain_links: Vec<&str> = std::iter::once(chain.base_link.as_str())
         .chain(chain.joints.iter().map(|j| j.child_link.as_str()))
         .collect();
@@ -263,7 +305,7 @@ pub fn describe(
         joints,
         links,
         disabled_pairs: pairs,
-        tool: config.tool,
+        tool,
         source: Provenance {
             urdf: config.urdf.display().to_string(),
             licence: config.licence,

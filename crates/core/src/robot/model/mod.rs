@@ -9,6 +9,8 @@
 //! - [`srdf`]: MoveIt's `<disable_collisions>` pairs;
 //! - [`self_pairs`]: link pairs that never or always touch, sampled;
 //! - [`tool`]: the ⊔ pusher tool's dimensions and boxes;
+//! - [`tool_mount`]: where the ⊔ tool goes on a bare URDF (the last
+//!   joint's axis, or a named frame);
 //! - [`description`]: a robot description (`robots/*.toml`);
 //! - [`import`]: a description from a URDF.
 
@@ -20,4 +22,5 @@ pub mod mesh_fit;
 pub mod self_pairs;
 pub mod srdf;
 pub mod tool;
+pub mod tool_mount;
 pub mod urdf_chain;

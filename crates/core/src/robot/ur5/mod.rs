@@ -201,7 +201,10 @@ pub fn description() -> RobotDescription {
             gripper: false,
             shapes: None,
             frame: None,
+            chosen: Some("built in: the ⊔ gripper on the UR5's flange".to_owned()),
         },
+        tool_choice: Default::default(),
+        tool_adjust: None,
     };
     describe(config, &robot, None, &[], "built in", 0).expect("the embedded UR5 is valid")
 }

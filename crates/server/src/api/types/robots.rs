@@ -42,6 +42,13 @@ pub struct RobotJsonInfo {
     /// The tool frame in `tool_link`'s frame: [x, y, z] (m) and
     /// [roll, pitch, yaw] (rad).
     pub tool_frame: ToolFrameJson,
+    /// How the tool frame was chosen: `flange axis: joint J, D m past it,
+    /// along|against its axis` (a bare URDF's default: the last revolute
+    /// joint's axis pointing out of the wrist, past what it carries),
+    /// `frame NAME` (`tool=NAME`), `configured` (a robot configuration's
+    /// `[tool]`), `built in: ...` (the built-in UR5); `, adjusted by
+    /// tool_xyz/tool_rpy` when those moved it.
+    pub tool_chosen: String,
     pub base_link: String,
     /// The home configuration (the default start).
     #[schema(value_type = Joints)]
