@@ -220,3 +220,55 @@ fn the_shipped_arms_are_served_by_name() {
         }
     }
 }
+
+/// Every `planned` answer carries its controller trajectory, whatever the
+/// arm: over the shipped arms, strategies and stances, each
+/// planned push has a `joint_trajectory` whose push starts and ends at
+/// valid points in order, and whose approach and push are the
+/// `trajectory` the viewer plays (one timing).
+#[test]
+fn every_planned_answer_carries_its_controller_trajectory() {
+    let server = Server::start(&[]);
+    let mut planned = 0;
+    for (k, name) in ["ur5", "panda", "iiwa", "ur10"].iter().enumerate() {
+        for (e, strategy) in ["physics", "model", "physics"].iter().enumerate() {
+            let (tree, targets) = crate::common::episode(10 + 4 * e, (10 * k + e) as u64);
+            let robot = if e == 2 {
+                json!({ "name": name })
+            } else {
+                json!({ "name": name, "base_region": { "min": [-1.0, -0.5, 0.1], "max": [0.0, 0.5, 1.0] } })
+            };
+            let body = json!({
+                "tree": serde_json::to_value(TreeJson::from_tree(&tree)).unwrap(),
+                "target_positions": targets.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+                "strategy": strategy,
+                "budget_ms": 3000,
+                "robot": robot,
+            });
+            let (status, answer) = server.json("POST", "/v1/plan", &body);
+            assert_eq!(status, 200, "{answer}");
+            if answer["status"] != "planned" {
+                assert!(answer["joint_trajectory"].is_null());
+                continue;
+            }
+            planned += 1;
+            let points = answer["joint_trajectory"]["points"]
+                .as_array()
+                .unwrap_or_else(|| panic!("{name}: planned without a trajectory: {answer}"));
+            let start = answer["push_start_point"].as_u64().unwrap() as usize;
+            let end = answer["push_end_point"].as_u64().unwrap() as usize;
+            assert!(
+                0 < start && start < end && end < points.len(),
+                "{name}: {start} {end} {}",
+                points.len()
+            );
+            let played = answer["trajectory"].as_array().unwrap();
+            assert_eq!(played.len(), end + 1, "{name}");
+            assert_eq!(answer["push_start_index"].as_u64(), Some(start as u64));
+            for (p, t) in points.iter().zip(played) {
+                assert_eq!(p["positions"], t["q"], "{name}");
+            }
+        }
+    }
+    assert!(planned >= 6, "only {planned} of 12 plans planned");
+}
