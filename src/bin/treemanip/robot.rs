@@ -87,8 +87,20 @@ pub fn run(command: RobotCommand) -> anyhow::Result<()> {
 
 fn check(args: CheckArgs) -> anyhow::Result<()> {
     let packages = package_path(&args.package_path);
-    let arm = treemanip::robot::catalog::resolve(&args.spec, &packages)
-        .with_context(|| format!("loading {}", args.spec))?;
+    use treemanip::robot::catalog;
+    let arm = if args.spec == catalog::BUILT_IN {
+        treemanip::robot::Arm::ur5(Default::default())
+    } else {
+        let spec = catalog::spec_of(&args.spec)?;
+        let (arm, free) = catalog::load_as_described(&spec, &packages)
+            .with_context(|| format!("loading {}", args.spec))?;
+        if !free {
+            println!(
+                "warning: no collision-free home found at the default mount (the server refuses this arm): see the home and pairs below"
+            );
+        }
+        arm
+    };
     let report = treemanip::robot::check::check(&arm, args.samples, args.seed);
     print!("{report}");
     match report.fatal() {

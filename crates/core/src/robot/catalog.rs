@@ -267,6 +267,24 @@ pub fn load_description(
 /// with the arm itself or the ground at the default mount (a bare URDF's default, zero clamped
 /// into the limits, often does) is replaced by [`free_home`]'s.
 pub fn load(spec: &RobotSpec, packages: &[PathBuf]) -> Result<Arm, DescriptionError> {
+    let (arm, free) = load_as_described(spec, packages)?;
+    if free {
+        Ok(arm)
+    } else {
+        Err(DescriptionError {
+            file: spec.path.clone(),
+            message: "no collision-free configuration found for a home (give one in a robot configuration; `treemanip robot check` says what collides)".to_owned(),
+        })
+    }
+}
+
+/// The arm `spec` names, with [`free_home`]'s home when there is one
+/// (`true`), else with its description's (`false`): what `treemanip robot
+/// check` reports on even when [`load`] would refuse it.
+pub fn load_as_described(
+    spec: &RobotSpec,
+    packages: &[PathBuf],
+) -> Result<(Arm, bool), DescriptionError> {
     let description = load_description(spec, packages)?;
     let fail = |message: String| DescriptionError {
         file: spec.path.clone(),
@@ -279,13 +297,10 @@ pub fn load(spec: &RobotSpec, packages: &[PathBuf]) -> Result<Arm, DescriptionEr
         )));
     }
     let arm = Arm::from_description(&description).map_err(fail)?;
-    let home = free_home(&arm).ok_or_else(|| {
-        fail(
-            "no collision-free configuration found for a home (give one in a robot configuration)"
-                .to_owned(),
-        )
-    })?;
-    arm.with_home(home).map_err(fail)
+    match free_home(&arm) {
+        Some(home) => Ok((arm.with_home(home).map_err(fail)?, true)),
+        None => Ok((arm, false)),
+    }
 }
 
 /// Random configurations tried for a bare URDF's home.
@@ -332,7 +347,13 @@ pub fn resolve(text: &str, packages: &[PathBuf]) -> Result<Arm, DescriptionError
     if text == BUILT_IN {
         return Ok(Arm::ur5(Default::default()));
     }
-    let spec = if text.contains('=') {
+    load(&spec_of(text)?, packages)
+}
+
+/// The specification a command line's arm names (see [`resolve`]; not the
+/// built-in, which has none).
+pub fn spec_of(text: &str) -> Result<RobotSpec, DescriptionError> {
+    Ok(if text.contains('=') {
         text.parse::<RobotSpec>()
             .map_err(|message| DescriptionError {
                 file: PathBuf::from(text),
@@ -349,8 +370,7 @@ pub fn resolve(text: &str, packages: &[PathBuf]) -> Result<Arm, DescriptionError
             .file_stem()
             .map_or_else(|| text.to_owned(), |s| s.to_string_lossy().into_owned());
         RobotSpec::at(name, path)
-    };
-    load(&spec, packages)
+    })
 }
 
 #[cfg(test)]

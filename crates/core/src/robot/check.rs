@@ -49,8 +49,10 @@ pub struct CheckReport {
     /// Checked pairs in contact in more than 5 % of the samples, with
     /// their share, most often first.
     pub frequent_pairs: Vec<(String, String, f64)>,
-    /// Self-collision pairs in contact at the home configuration.
+    /// Self-collision pairs in contact at the home configuration, and
+    /// what else it hits at the default mount (the ground).
     pub home_contacts: Vec<(String, String)>,
+    pub home_hit: Option<String>,
     /// IK on random reachable poses: solved, tried.
     pub ik: (usize, usize),
     /// The best stance and how many of its [`PROBE_PUSHES`] test pushes
@@ -133,6 +135,9 @@ pub fn check(arm: &Arm, samples: usize, seed: u64) -> CheckReport {
             })
         })
         .count();
+    let home_hit = model
+        .check(&home, &TreeObstacles::empty(), &Allowed::default())
+        .map(|hit| format!("{hit:?}"));
     let poses = robot.link_poses(&home);
     let tool_outward = robot.joint_axes(&poses).last().and_then(|(point, _, _)| {
         let tool = robot.tool_pose(&home);
@@ -168,6 +173,7 @@ pub fn check(arm: &Arm, samples: usize, seed: u64) -> CheckReport {
         self_free: share(free),
         frequent_pairs,
         home_contacts,
+        home_hit,
         ik: (solved, solvable.len()),
         stance,
         pushes_kinematic,
@@ -265,6 +271,10 @@ impl fmt::Display for CheckReport {
         )?;
         for (a, b, share) in &self.frequent_pairs {
             writeln!(f, "  {a}–{b} in contact in {:.1} %", 100.0 * share)?;
+        }
+        match &self.home_hit {
+            Some(hit) => writeln!(f, "home collides at the default mount: {hit}")?,
+            None => writeln!(f, "home is collision-free at the default mount")?,
         }
         writeln!(
             f,

@@ -4,10 +4,11 @@
 //! axis, pointing away from the arm, and the tool's mount sits on that axis
 //! just past every link the joint carries (the flange, a hand, its fingers:
 //! their collision geometry's extent along the axis), so the gripper never
-//! starts inside the wrist. Which way is "away" is read from the same
-//! geometry: the side of the joint it extends further to (the hand hangs
-//! off the flange, not back into the forearm); with no geometry, the side
-//! away from the joint before it. [`frame`] instead puts the mount on a
+//! starts inside the wrist. Which way is "away": away from the joint
+//! before it where the wrist offsets the last joint along its own axis
+//! (xArm, Z1); where it does not (the URs, the Panda: the offset is across
+//! the axis), the side the carried geometry extends further to (the hand
+//! hangs off the flange, not back into the forearm). [`frame`] instead puts the mount on a
 //! URDF frame the tip carries (`tool=tool0`), its z the push axis. Either
 //! can be turned and moved further by `tool_xyz`/`tool_rpy`
 //! ([`adjusted`]). Each answer says how it was chosen, which `GET
@@ -19,6 +20,10 @@ use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaterni
 
 use crate::robot::model::link_geometry::LinkGeometry;
 use crate::robot::model::urdf_chain::{Chain, JointKind};
+
+/// The smallest offset of the last joint from the one before it, along
+/// its axis, that says which way the wrist points (m).
+const WRIST_OFFSET: f64 = 0.01;
 
 /// How a robot configuration places the tool: as its `[tool]` table says
 /// (or the tip's origin, without one), on the last joint's axis, or on a
@@ -97,21 +102,19 @@ pub fn flange_axis(
             }
         }
     }
-    let sign = if hi > -lo + 1e-9 {
-        1.0
-    } else if -lo > hi + 1e-9 {
-        -1.0
-    } else {
-        // No geometry to go by: away from the joint before it.
-        let before = turning
-            .len()
-            .checked_sub(2)
-            .and_then(|k| poses.get(&turning[k].child_link))
-            .map(|p| p * Point3::origin());
-        match before {
-            Some(b) if (point - b).dot(&axis) < 0.0 => -1.0,
-            _ => 1.0,
-        }
+    // Away from the joint before it, where the wrist offsets the last
+    // joint along its own axis (the flange then sits out along it);
+    // else the side the carried geometry reaches further to (a hand hangs
+    // off the flange); else along the axis.
+    let before = turning
+        .len()
+        .checked_sub(2)
+        .and_then(|k| poses.get(&turning[k].child_link))
+        .map(|p| (point - p * Point3::origin()).dot(&axis));
+    let sign = match before {
+        Some(d) if d.abs() > WRIST_OFFSET => d.signum(),
+        _ if -lo > hi + 1e-9 => -1.0,
+        _ => 1.0,
     };
     let z = axis * sign;
     let extent = if sign > 0.0 { hi } else { -lo };
