@@ -190,3 +190,30 @@ fn tool_options_parse_or_say_what_is_wrong() {
         .unwrap_err();
     assert!(err.contains("finite"), "{err}");
 }
+
+/// The ROS-Industrial UR3's fitted base housing and upper arm touch where
+/// the URDF draws the arm (and in half of all poses): disabled as MoveIt
+/// disables pairs in collision at the default pose, so its rest pose is
+/// free and it pushes.
+#[test]
+fn pairs_touching_at_rest_are_disabled() {
+    let Some(erd) = robot_data() else { return };
+    let s = spec(&format!(
+        "ur3ri={}/ur_description/urdf/ur3_robot.urdf,tip=tool0",
+        erd.display()
+    ));
+    let description = load_description(&s, std::slice::from_ref(&erd)).unwrap();
+    let pair = description
+        .disabled_pairs
+        .iter()
+        .find(|p| {
+            let mut names = [p.a.as_str(), p.b.as_str()];
+            names.sort();
+            names == ["base_link", "upper_arm_link"]
+        })
+        .expect("base_link–upper_arm_link is disabled");
+    assert_eq!(pair.reason, DisableReason::Default);
+    let report = check(&load(&s, &[erd]).unwrap(), 500, 2);
+    assert!(report.home_contacts.is_empty(), "{report}");
+    assert!(report.fatal().is_none(), "{report}");
+}

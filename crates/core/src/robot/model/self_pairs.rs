@@ -8,6 +8,11 @@
 //!   inside the joint limits (the pair cannot reach each other);
 //! - **always**: a collision at every sample (the shapes overlap whatever
 //!   the joints do: a checker would refuse every configuration);
+//! - **default**: a collision at the chain's default configuration (zero,
+//!   clamped into the limits), as MoveIt's setup assistant disables them:
+//!   fitted capsules that touch where the arm was drawn (the UR3's base
+//!   housing and upper arm, whose meshes nearly touch there) would refuse
+//!   the arm's own rest pose;
 //! - **often**: a collision in at least [`OFTEN`] of the samples, MoveIt's
 //!   default "often in collision" (95 %): fitted shapes that overlap in
 //!   nearly every pose (a base housing and the upper arm two joints on)
@@ -40,6 +45,8 @@ pub enum DisableReason {
     Always,
     /// In collision in at least [`OFTEN`] of the samples.
     Often,
+    /// In collision at the chain's default configuration.
+    Default,
     /// Named in the robot's configuration.
     Configured,
     /// Named in the robot's SRDF.
@@ -49,6 +56,11 @@ pub enum DisableReason {
 /// The share of samples in collision above which a pair is disabled as
 /// [`DisableReason::Often`] (MoveIt setup assistant's default).
 pub const OFTEN: f64 = 0.95;
+
+/// How close two links may be at the default configuration before the
+/// pair counts as touching there (m): the clearance the planner keeps
+/// between an arm's own links (`robot::collision`'s `SELF_CLEARANCE`).
+pub const REST_CLEARANCE: f64 = 0.001;
 
 /// A pair of links left out of self-collision checks.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -251,35 +263,62 @@ pub fn disabled_pairs(
     let mut hits = vec![0usize; pairs.len()];
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let links = LinkTree::new(robot, chain);
+    let touching = |poses: &HashMap<String, Isometry3<f64>>, i: usize, k: usize| {
+        let (Some(pi), Some(pk)) = (poses.get(shapes[i].0), poses.get(shapes[k].0)) else {
+            return false;
+        };
+        shapes[i].1.iter().any(|(oi, si)| {
+            shapes[k].1.iter().any(|(ok, sk)| {
+                parry3d_f64::query::intersection_test(
+                    &pose(&(pi * oi)),
+                    si.as_ref(),
+                    &pose(&(pk * ok)),
+                    sk.as_ref(),
+                )
+                // An unsupported pair counts as touching: the pair
+                // then stays checked unless it always touches.
+                .map_or(true, |hit| hit.intersecting)
+            })
+        })
+    };
     for _ in 0..samples {
         let q = random_configuration(chain, &mut rng);
         let poses = links.poses(&q);
         for (n, &(i, k)) in pairs.iter().enumerate() {
-            let (Some(pi), Some(pk)) = (poses.get(shapes[i].0), poses.get(shapes[k].0)) else {
-                continue;
-            };
-            let touch = shapes[i].1.iter().any(|(oi, si)| {
-                shapes[k].1.iter().any(|(ok, sk)| {
-                    parry3d_f64::query::intersection_test(
-                        &pose(&(pi * oi)),
-                        si.as_ref(),
-                        &pose(&(pk * ok)),
-                        sk.as_ref(),
-                    )
-                    // An unsupported pair counts as touching: the pair
-                    // then stays checked unless it always touches.
-                    .map_or(true, |hit| hit.intersecting)
-                })
-            });
-            hits[n] += usize::from(touch);
+            hits[n] += usize::from(touching(&poses, i, k));
         }
     }
+    // At rest, a pair counts as touching within the clearance the planner
+    // keeps between an arm's own links.
+    let near_at_rest = |poses: &HashMap<String, Isometry3<f64>>, i: usize, k: usize| {
+        let (Some(pi), Some(pk)) = (poses.get(shapes[i].0), poses.get(shapes[k].0)) else {
+            return false;
+        };
+        shapes[i].1.iter().any(|(oi, si)| {
+            shapes[k].1.iter().any(|(ok, sk)| {
+                parry3d_f64::query::distance(
+                    &pose(&(pi * oi)),
+                    si.as_ref(),
+                    &pose(&(pk * ok)),
+                    sk.as_ref(),
+                )
+                .map_or(true, |d| d.distance <= REST_CLEARANCE)
+            })
+        })
+    };
+    let rest: Vec<f64> = chain
+        .limits()
+        .iter()
+        .map(|(lo, hi)| 0f64.clamp(*lo, *hi))
+        .collect();
+    let at_rest = links.poses(&rest);
     // With no samples, nothing is known of the other pairs: all stay checked.
     for (&(i, k), &h) in pairs.iter().zip(&hits).filter(|_| samples > 0) {
         let reason = match h {
             0 => DisableReason::Never,
             h if h == samples => DisableReason::Always,
             h if h as f64 >= OFTEN * samples as f64 => DisableReason::Often,
+            _ if near_at_rest(&at_rest, i, k) => DisableReason::Default,
             _ => continue,
         };
         out.push(DisabledPair {
