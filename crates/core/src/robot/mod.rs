@@ -19,8 +19,9 @@
 //! 5. [`motion`]: RRT* in joint space, the planning scene, one push's
 //!    motion (the paper's Algorithm 1, lines 4-8: approach, push, retreat),
 //!    trajectory timing (TOPP-RA, jerk limits) and ROS 2 messages.
-//! 6. [`ur5`] (the built-in UR5 and its description) and [`catalog`]
-//!    (arms by name: the built-in one, shipped descriptions, URDFs).
+//! 6. [`ur5`] (the built-in UR5 and its description), [`catalog`] (arms
+//!    by name: the built-in one, shipped descriptions, URDFs) and
+//!    [`check`] (what `treemanip robot check` reports on an arm).
 //!
 //! How each part works and what it measures: `docs/robot.md`.
 
