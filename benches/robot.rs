@@ -367,12 +367,10 @@ fn fence_per_arm(runs: u64) {
         "\nfence query per shipped arm (tool 0.65-0.9 rad either side of a 0.5 m fence), {runs} seeds each"
     );
     for name in ["ur5", "ur10", "panda", "iiwa"] {
-        let spec = treemanip::robot::catalog::RobotSpec {
-            name: name.to_owned(),
-            path: format!("robots/{name}.toml").into(),
-            tip: None,
-            base: None,
-        };
+        let spec = treemanip::robot::catalog::RobotSpec::at(
+            name.to_owned(),
+            format!("robots/{name}.toml").into(),
+        );
         let arm = treemanip::robot::catalog::load(&spec, &[]).expect("a shipped arm loads");
         let model = CollisionModel::new(arm.with_base(PAPER_BASE));
         let Some((start, goal, fence)) = across_fence(&model) else {
