@@ -264,13 +264,17 @@ impl From<&Rejected> for RejectedJson {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(as = FitReport)]
 pub struct FitReportJson {
+    /// Levenberg–Marquardt iterations of the fit.
     pub iterations: usize,
+    /// Whether the fit met its tolerance within its iterations.
     pub converged: bool,
     /// The rms position residual at the estimate (m).
     pub position_rms: f64,
     /// The same with the prior's stiffness (m).
     pub prior_position_rms: f64,
+    /// Observed position coordinates and force components fitted.
     pub observations: usize,
+    /// Simulations the fit ran.
     pub simulations: usize,
 }
 

@@ -160,17 +160,29 @@ impl From<&JointTrajectory> for JointTrajectoryJson {
 #[serde(rename_all = "snake_case")]
 #[schema(as = Outcome)]
 pub enum OutcomeJson {
+    /// Carried out: this is the plan.
     Planned,
+    /// Not a push that can be made (the root, a zero push, along the branch).
     InvalidCandidate,
+    /// No IK solution for the pre-contact pose.
     Unreachable,
+    /// Every IK solution of the pre-contact pose collides.
     GoalInCollision,
+    /// No pre-contact solution carries out the straight push.
     PushInfeasible,
+    /// RRT* found no approach within its budget.
     NoPath,
+    /// A path, but no controller trajectory within the joints' limits.
     NoTrajectory,
+    /// A budget ran out before it.
     Skipped,
+    /// Predicted no better than doing nothing.
     NotHelpful,
+    /// The start collides at this base.
     StartInCollision,
+    /// Predicted or simulated over a load limit.
     OverLimit,
+    /// Simulated to miss the `clear` or `reach` it was predicted to meet.
     Missed,
 }
 
