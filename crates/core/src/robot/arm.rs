@@ -101,6 +101,9 @@ pub struct Arm {
     /// How the tool's mount was chosen (`flange axis: joint ...`, `frame
     /// tool0`, `configured`).
     tool_chosen: String,
+    /// The added ⊔ gripper's link (none when the description's URDF
+    /// carries the tool itself).
+    gripper: Option<usize>,
     /// World pose of the chain's base link.
     pub base: Isometry3<f64>,
     /// Where a mobile base stands for a push ([`Arm::stances`]).
@@ -209,27 +212,32 @@ impl Arm {
             Some(f) => f.isometry(),
             None => Isometry3::translation(0.0, 0.0, TOOL_OFFSET),
         };
-        for name in [GRIPPER_LINK, TOOL_LINK] {
-            if index.contains_key(name) && (name == TOOL_LINK || d.tool.gripper) {
-                return Err(format!(
-                    "the link name `{name}` is the tool's; the robot has a link of that name"
-                ));
+        // The tool's links keep their names unless the robot has links of
+        // those names (the SO-100's `gripper`): then they are prefixed.
+        let unused = |name: &str| {
+            let mut n = name.to_owned();
+            while index.contains_key(&n) {
+                n = format!("treemanip_{n}");
             }
-        }
-        if d.tool.gripper {
-            index.insert(GRIPPER_LINK.to_owned(), links.len());
+            n
+        };
+        let gripper_name = unused(GRIPPER_LINK);
+        let tool_name = unused(TOOL_LINK);
+        let gripper = d.tool.gripper.then(|| {
+            index.insert(gripper_name.clone(), links.len());
             links.push(ArmLink {
-                name: GRIPPER_LINK.to_owned(),
+                name: gripper_name,
                 parent: Some(tip),
                 origin: mount,
                 motion: None,
                 shapes: tool_shapes,
             });
-        }
+            links.len() - 1
+        });
         let tool = links.len();
-        index.insert(TOOL_LINK.to_owned(), tool);
+        index.insert(tool_name.clone(), tool);
         links.push(ArmLink {
-            name: TOOL_LINK.to_owned(),
+            name: tool_name,
             parent: Some(tip),
             origin: mount * tool_frame,
             motion: None,
@@ -287,6 +295,7 @@ impl Arm {
             solver,
             tip,
             tool,
+            gripper,
             home,
             tool_chosen: d
                 .tool
@@ -514,6 +523,11 @@ impl Arm {
 
     pub fn tool_pose(&self, q: &[f64]) -> Isometry3<f64> {
         self.link_poses(q)[self.tool]
+    }
+
+    /// The added ⊔ gripper's link, if the arm carries one.
+    pub fn gripper_link(&self) -> Option<usize> {
+        self.gripper
     }
 
     /// How the tool's mount was chosen: `flange axis: joint ...` (a bare

@@ -217,3 +217,21 @@ fn pairs_touching_at_rest_are_disabled() {
     assert!(report.home_contacts.is_empty(), "{report}");
     assert!(report.fatal().is_none(), "{report}");
 }
+
+/// The SO-100 names a link `gripper`, as the ⊔ tool's link is named: the
+/// tool's link takes another name instead of refusing the arm.
+#[test]
+fn a_robot_link_named_like_the_tool_keeps_its_name() {
+    let Some(erd) = robot_data() else { return };
+    let s = spec(&format!(
+        "so100={}/so_arm_description/urdf/so100.urdf",
+        erd.display()
+    ));
+    let (arm, _) =
+        treemanip_core::robot::catalog::load_as_described(&s, std::slice::from_ref(&erd)).unwrap();
+    let names: Vec<&str> = arm.link_names().collect();
+    assert!(names.contains(&"gripper"), "{names:?}");
+    assert!(names.contains(&"treemanip_gripper"), "{names:?}");
+    let ours = arm.gripper_link().unwrap();
+    assert_eq!(names[ours], "treemanip_gripper");
+}

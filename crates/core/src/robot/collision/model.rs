@@ -254,10 +254,7 @@ impl CollisionModel {
     /// sampler does for the arm's own pairs: it could not know of the
     /// gripper.
     pub(super) fn drop_gripper_pairs_always_touching(&mut self) {
-        let Some(gripper) = self
-            .robot
-            .link_index(crate::robot::model::tool::GRIPPER_LINK)
-        else {
+        let Some(gripper) = self.robot.gripper_link() else {
             return;
         };
         let candidates: Vec<usize> = (0..self.self_pairs.len())
