@@ -297,11 +297,7 @@ impl Arm {
             tool,
             gripper,
             home,
-            tool_chosen: d
-                .tool
-                .chosen
-                .clone()
-                .unwrap_or_else(|| "configured".to_owned()),
+            tool_chosen: d.tool.how_chosen(),
             disabled_pairs: d
                 .disabled_pairs
                 .iter()

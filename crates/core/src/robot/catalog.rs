@@ -11,7 +11,7 @@ use crate::robot::model::description::{
 };
 use crate::robot::model::import::{Blame, describe, import};
 use crate::robot::model::joint_vector::JointVector;
-use crate::robot::model::tool_mount::{ChosenMount, ToolChoice, adjusted};
+use crate::robot::model::tool_mount::ToolChoice;
 use crate::robot::model::urdf_chain::parse_urdf;
 use crate::robot::model::urdf_chain::random_configuration;
 use crate::robot::motion::rrt::distance;
@@ -213,17 +213,7 @@ pub fn load_description(
             RobotDescription::from_toml_str(&text, &spec.path)?
         };
         if let Some((xyz, rpy)) = adjust {
-            let chosen = ChosenMount {
-                mount: description.tool.mount.isometry(),
-                how: description
-                    .tool
-                    .chosen
-                    .clone()
-                    .unwrap_or_else(|| "configured".to_owned()),
-            };
-            let moved = adjusted(chosen, xyz, rpy);
-            description.tool.mount = (&moved.mount).into();
-            description.tool.chosen = Some(moved.how);
+            description.tool.adjust(xyz, rpy);
         }
         description
     } else {

@@ -123,3 +123,28 @@ print(len(cdr), len(back.points))
 "#;
     python_json(script, json)
 }
+
+/// example-robot-data's robots folder (PyPI, `requirements-dev.txt`), or
+/// `None`: the test then says why it skipped, unless Python is required.
+pub fn robot_data() -> Option<PathBuf> {
+    let out = std::process::Command::new("python3")
+        .args([
+            "-c",
+            "import sysconfig, os; print(os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share', 'example-robot-data', 'robots'))",
+        ])
+        .output()
+        .ok();
+    let path = out
+        .as_ref()
+        .filter(|o| o.status.success())
+        .map(|o| PathBuf::from(String::from_utf8_lossy(&o.stdout).trim()));
+    if let Some(p) = path.filter(|p| p.is_dir()) {
+        return Some(p);
+    }
+    assert!(
+        std::env::var_os("TREEMANIP_REQUIRE_PYTHON").is_none(),
+        "example-robot-data is required (pip install -r requirements-dev.txt)"
+    );
+    eprintln!("skipped: example-robot-data is not installed");
+    None
+}

@@ -4,7 +4,6 @@
 //! random reachable poses of both, and broken URDFs named.
 
 use std::path::PathBuf;
-use std::process::Command;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -16,25 +15,13 @@ use treemanip_core::robot::{Arm, ur5};
 /// The Panda URDF that the `example-robot-data` package ships, or `None`
 /// (the test then says why it skipped, unless Python is required).
 pub fn panda_urdf() -> Option<PathBuf> {
-    let out = Command::new("python3")
-        .args([
-            "-c",
-            "import sysconfig, os; print(os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share', 'example-robot-data', 'robots', 'panda_description', 'urdf', 'panda.urdf'))",
-        ])
-        .output()
-        .ok()?;
-    let path = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
-    if out.status.success() && path.is_file() {
-        Some(path)
-    } else {
-        assert!(
-            std::env::var_os("TREEMANIP_REQUIRE_PYTHON").is_none(),
-            "example-robot-data is required (pip install -r requirements-dev.txt): no {}",
-            path.display()
-        );
-        eprintln!("skipped: example-robot-data is not installed");
-        None
-    }
+    let path = crate::common::robot_data()?.join("panda_description/urdf/panda.urdf");
+    assert!(
+        path.is_file(),
+        "example-robot-data ships {}",
+        path.display()
+    );
+    Some(path)
 }
 
 fn ur5_chain() -> Chain {

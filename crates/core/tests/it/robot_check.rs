@@ -5,34 +5,11 @@
 //! fewer than six joints is refused at load with why.
 
 use std::path::PathBuf;
-use std::process::Command;
 
 use treemanip_core::robot::catalog::{load, load_description};
 use treemanip_core::robot::check::check;
 use treemanip_core::robot::model::self_pairs::DisableReason;
 use treemanip_core::robot::{Arm, catalog::RobotSpec};
-
-/// example-robot-data's robots folder, or `None` (the test then says why
-/// it skipped, unless Python is required).
-fn robot_data() -> Option<PathBuf> {
-    let out = Command::new("python3")
-        .args([
-            "-c",
-            "import sysconfig, os; print(os.path.join(sysconfig.get_paths()['purelib'], 'cmeel.prefix', 'share', 'example-robot-data', 'robots'))",
-        ])
-        .output()
-        .ok()?;
-    let path = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
-    if out.status.success() && path.is_dir() {
-        return Some(path);
-    }
-    assert!(
-        std::env::var_os("TREEMANIP_REQUIRE_PYTHON").is_none(),
-        "example-robot-data is required (pip install -r requirements-dev.txt)"
-    );
-    eprintln!("skipped: example-robot-data is not installed");
-    None
-}
 
 fn spec(text: &str) -> RobotSpec {
     text.parse().unwrap()
@@ -40,7 +17,9 @@ fn spec(text: &str) -> RobotSpec {
 
 #[test]
 fn a_bare_ur10_urdf_with_its_tool0_can_push() {
-    let Some(erd) = robot_data() else { return };
+    let Some(erd) = crate::common::robot_data() else {
+        return;
+    };
     let s = spec(&format!(
         "ur10ri={}/ur_description/urdf/ur10_robot.urdf,tip=tool0",
         erd.display()
@@ -117,7 +96,9 @@ fn an_arm_of_four_joints_is_refused_with_why() {
 /// turned onto x). Both then push in front of themselves.
 #[test]
 fn the_tool_frame_comes_from_the_chain() {
-    let Some(erd) = robot_data() else { return };
+    let Some(erd) = crate::common::robot_data() else {
+        return;
+    };
     let jaco = load(
         &spec(&format!(
             "jaco={}/kinova_description/robots/kinova.urdf,tip=j2s6s200_link_6",
@@ -197,7 +178,9 @@ fn tool_options_parse_or_say_what_is_wrong() {
 /// free and it pushes.
 #[test]
 fn pairs_touching_at_rest_are_disabled() {
-    let Some(erd) = robot_data() else { return };
+    let Some(erd) = crate::common::robot_data() else {
+        return;
+    };
     let s = spec(&format!(
         "ur3ri={}/ur_description/urdf/ur3_robot.urdf,tip=tool0",
         erd.display()
@@ -222,7 +205,9 @@ fn pairs_touching_at_rest_are_disabled() {
 /// tool's link takes another name instead of refusing the arm.
 #[test]
 fn a_robot_link_named_like_the_tool_keeps_its_name() {
-    let Some(erd) = robot_data() else { return };
+    let Some(erd) = crate::common::robot_data() else {
+        return;
+    };
     let s = spec(&format!(
         "so100={}/so_arm_description/urdf/so100.urdf",
         erd.display()

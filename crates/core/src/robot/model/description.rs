@@ -25,7 +25,7 @@
 //! self-collision pairs left unchecked and why, the home configuration,
 //! and where it all came from.
 
-use crate::robot::model::tool_mount::ToolChoice;
+use crate::robot::model::tool_mount::{ChosenMount, ToolChoice, adjusted};
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -148,6 +148,31 @@ pub struct ToolSpec {
 
 fn yes() -> bool {
     true
+}
+
+impl ToolSpec {
+    /// How the mount was chosen (`configured` when nothing says).
+    pub fn how_chosen(&self) -> String {
+        self.chosen
+            .clone()
+            .unwrap_or_else(|| "configured".to_owned())
+    }
+
+    /// The mount `chosen` chose, and how.
+    pub fn place(&mut self, chosen: ChosenMount) {
+        self.mount = (&chosen.mount).into();
+        self.chosen = Some(chosen.how);
+    }
+
+    /// The mount moved by `xyz` and turned by `rpy` in its own frame
+    /// (`tool_xyz`, `tool_rpy`).
+    pub fn adjust(&mut self, xyz: [f64; 3], rpy: [f64; 3]) {
+        let current = ChosenMount {
+            mount: self.mount.isometry(),
+            how: self.how_chosen(),
+        };
+        self.place(adjusted(current, xyz, rpy));
+    }
 }
 
 impl Default for ToolSpec {

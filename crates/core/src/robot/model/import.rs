@@ -15,7 +15,7 @@ use crate::robot::model::self_pairs::{
     DisableReason, DisabledPair, all_link_poses, disabled_pairs,
 };
 use crate::robot::model::srdf::{SrdfPair, disabled_collisions};
-use crate::robot::model::tool_mount::{ChosenMount, ToolChoice, adjusted, flange_axis, frame};
+use crate::robot::model::tool_mount::{ToolChoice, flange_axis, frame};
 use crate::robot::model::urdf_chain::{Chain, JointKind, parse_urdf};
 
 /// Imports the robot that the configuration at `config_path` describes:
@@ -120,28 +120,13 @@ fn place_tool(
     poses: &HashMap<String, Isometry3<f64>>,
 ) -> Result<ToolSpec, String> {
     let mut tool = config.tool.clone();
-    let chosen = match &config.tool_choice {
-        ToolChoice::Configured => None,
-        ToolChoice::FlangeAxis => Some(flange_axis(robot, chain, geometry, poses)?),
-        ToolChoice::Frame(name) => Some(frame(robot, chain, poses, name)?),
-    };
-    let chosen = match (chosen, config.tool_adjust) {
-        (chosen, Some((xyz, rpy))) => Some(adjusted(
-            chosen.unwrap_or_else(|| ChosenMount {
-                mount: tool.mount.isometry(),
-                how: tool
-                    .chosen
-                    .clone()
-                    .unwrap_or_else(|| "configured".to_owned()),
-            }),
-            xyz,
-            rpy,
-        )),
-        (chosen, None) => chosen,
-    };
-    if let Some(c) = chosen {
-        tool.mount = (&c.mount).into();
-        tool.chosen = Some(c.how);
+    match &config.tool_choice {
+        ToolChoice::Configured => {}
+        ToolChoice::FlangeAxis => tool.place(flange_axis(robot, chain, geometry, poses)?),
+        ToolChoice::Frame(name) => tool.place(frame(robot, chain, poses, name)?),
+    }
+    if let Some((xyz, rpy)) = config.tool_adjust {
+        tool.adjust(xyz, rpy);
     }
     Ok(tool)
 }

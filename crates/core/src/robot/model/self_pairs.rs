@@ -25,6 +25,7 @@
 use std::collections::HashMap;
 
 use nalgebra::{Isometry3, Vector3};
+use parry3d_f64::math::Pose;
 use parry3d_f64::shape::Shape as ParryShape;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -69,6 +70,9 @@ pub struct DisabledPair {
     pub b: String,
     pub reason: DisableReason,
 }
+
+/// A test of two placed parry shapes (touching, or within a distance).
+type ShapeTest = dyn Fn(&Pose, &dyn ParryShape, &Pose, &dyn ParryShape) -> bool;
 
 /// Parry shapes, each with its pose in its link's frame.
 type PlacedShapes = Vec<(Isometry3<f64>, Box<dyn ParryShape>)>;
@@ -263,22 +267,30 @@ pub fn disabled_pairs(
     let mut hits = vec![0usize; pairs.len()];
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let links = LinkTree::new(robot, chain);
-    let touching = |poses: &HashMap<String, Isometry3<f64>>, i: usize, k: usize| {
-        let (Some(pi), Some(pk)) = (poses.get(shapes[i].0), poses.get(shapes[k].0)) else {
-            return false;
-        };
-        shapes[i].1.iter().any(|(oi, si)| {
-            shapes[k].1.iter().any(|(ok, sk)| {
-                parry3d_f64::query::intersection_test(
-                    &pose(&(pi * oi)),
-                    si.as_ref(),
-                    &pose(&(pk * ok)),
-                    sk.as_ref(),
-                )
-                // An unsupported pair counts as touching: the pair
-                // then stays checked unless it always touches.
-                .map_or(true, |hit| hit.intersecting)
+    // Whether any shape of link i and any of link k pass `test`, placed
+    // at `poses`.
+    let any_shapes =
+        |poses: &HashMap<String, Isometry3<f64>>, i: usize, k: usize, test: &ShapeTest| {
+            let (Some(pi), Some(pk)) = (poses.get(shapes[i].0), poses.get(shapes[k].0)) else {
+                return false;
+            };
+            shapes[i].1.iter().any(|(oi, si)| {
+                shapes[k].1.iter().any(|(ok, sk)| {
+                    test(
+                        &pose(&(pi * oi)),
+                        si.as_ref(),
+                        &pose(&(pk * ok)),
+                        sk.as_ref(),
+                    )
+                })
             })
+        };
+    let touching = |poses: &HashMap<String, Isometry3<f64>>, i: usize, k: usize| {
+        any_shapes(poses, i, k, &|a, sa, b, sb| {
+            parry3d_f64::query::intersection_test(a, sa, b, sb)
+                // An unsupported pair counts as touching: the pair then
+                // stays checked unless it always touches.
+                .map_or(true, |hit| hit.intersecting)
         })
     };
     for _ in 0..samples {
@@ -291,19 +303,9 @@ pub fn disabled_pairs(
     // At rest, a pair counts as touching within the clearance the planner
     // keeps between an arm's own links.
     let near_at_rest = |poses: &HashMap<String, Isometry3<f64>>, i: usize, k: usize| {
-        let (Some(pi), Some(pk)) = (poses.get(shapes[i].0), poses.get(shapes[k].0)) else {
-            return false;
-        };
-        shapes[i].1.iter().any(|(oi, si)| {
-            shapes[k].1.iter().any(|(ok, sk)| {
-                parry3d_f64::query::distance(
-                    &pose(&(pi * oi)),
-                    si.as_ref(),
-                    &pose(&(pk * ok)),
-                    sk.as_ref(),
-                )
+        any_shapes(poses, i, k, &|a, sa, b, sb| {
+            parry3d_f64::query::distance(a, sa, b, sb)
                 .map_or(true, |d| d.distance <= REST_CLEARANCE)
-            })
         })
     };
     let rest: Vec<f64> = chain
