@@ -13,7 +13,7 @@
 //! N·m·s/rad for joint damping.
 
 pub use treemanip_core::{
-    dataset, geometry, graph, identify, model, planner, robot, seed, sim, tree,
+    dataset, geometry, graph, identify, model, planner, robot, scan, seed, sim, tree,
 };
 pub use treemanip_infer as infer;
 pub use treemanip_server::{api, fuzz};

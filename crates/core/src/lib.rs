@@ -12,6 +12,7 @@
 //!   [`model`]: what a model is trained for (its domain);
 //! - [`dataset`]: push episodes collected with the simulator, `.npz` files;
 //! - [`geometry`]: shapes placed in the world and their queries;
+//! - [`scan`]: trees from point clouds, synthetic scans and their scores;
 //! - [`robot`]: any arm from its URDF, in layers (model, kinematics, arm,
 //!   collision, motion, catalog);
 //! - [`planner`]: the paper's Algorithm 1, with the contact policy and the
@@ -28,6 +29,7 @@ pub mod identify;
 pub mod model;
 pub mod planner;
 pub mod robot;
+pub mod scan;
 pub mod seed;
 pub mod sim;
 pub mod tree;

@@ -426,6 +426,7 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
                 to: grip + episode.push.vector,
                 colour: "#d62728".to_owned(),
             }],
+            ..Figure::default()
         };
         let path = args.out.join(format!("episode_{k}.svg"));
         std::fs::write(&path, figure.to_svg())?;

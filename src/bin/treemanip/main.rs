@@ -16,6 +16,7 @@ mod progress;
 #[cfg(feature = "train")]
 mod ranks;
 mod robot;
+mod scans;
 mod sim;
 #[cfg(feature = "train")]
 mod tasks;

@@ -20,6 +20,13 @@ pub enum TreesCommand {
     Show(ShowArgs),
     /// Draw a tree URDF file as SVG: front (x–z) and side (y–z) views.
     Render(RenderArgs),
+    /// What a camera at K viewpoints would see of a tree: a point cloud
+    /// (binary PLY) with occlusion, depth noise, optional leaves, fruit and
+    /// outliers.
+    Scan(crate::scans::ScanArgs),
+    /// A tree from a point cloud file (PLY, PCD, LAS/LAZ, XYZ): the JSON
+    /// `POST /v1/trees/from-points` answers, and an SVG of cloud and tree.
+    FromPoints(crate::scans::FromPointsArgs),
 }
 
 #[derive(Args)]
@@ -93,6 +100,8 @@ pub fn run(cmd: TreesCommand) -> anyhow::Result<()> {
         TreesCommand::Generate(args) => generate(args),
         TreesCommand::Show(args) => show(args),
         TreesCommand::Render(args) => render_file(args),
+        TreesCommand::Scan(args) => crate::scans::scan_cmd(args),
+        TreesCommand::FromPoints(args) => crate::scans::from_points_cmd(args),
     }
 }
 

@@ -18,10 +18,13 @@ const MARGIN: f64 = 30.0;
 const TITLE_HEIGHT: f64 = 28.0;
 
 /// One tree drawn in some pose: `positions` may differ from the tree's own
-/// (a deformed state); topology and radii come from `tree`.
+/// (a deformed state). The topology and each branch's radius (m; the
+/// root's entry unused) are the layer's own, so a skeleton that is not a
+/// [`Tree`] (one extracted from a scan, of any size) draws the same way.
 #[derive(Debug, Clone)]
-pub struct Layer<'a> {
-    pub tree: &'a Tree,
+pub struct Layer {
+    pub parents: Vec<Option<usize>>,
+    pub radius: Vec<f64>,
     pub positions: Vec<Point3<f64>>,
     /// Any SVG colour.
     pub colour: String,
@@ -30,11 +33,16 @@ pub struct Layer<'a> {
     pub label_nodes: bool,
 }
 
-impl<'a> Layer<'a> {
+impl Layer {
     /// The tree at rest, in bark brown, with node labels.
-    pub fn rest(tree: &'a Tree) -> Self {
+    pub fn rest(tree: &Tree) -> Self {
         Self {
-            tree,
+            parents: tree.parents().to_vec(),
+            radius: tree
+                .branches()
+                .iter()
+                .map(|b| b.map_or(0.0, |b| b.radius))
+                .collect(),
             positions: tree.positions().to_vec(),
             colour: "#6b4423".to_owned(),
             opacity: 1.0,
@@ -50,10 +58,18 @@ pub struct Arrow {
     pub colour: String,
 }
 
+/// Points drawn as dots (a point cloud), under the layers.
+#[derive(Debug, Clone)]
+pub struct Dots {
+    pub points: Vec<Point3<f64>>,
+    pub colour: String,
+}
+
 #[derive(Debug, Clone, Default)]
-pub struct Figure<'a> {
+pub struct Figure {
     pub title: String,
-    pub layers: Vec<Layer<'a>>,
+    pub dots: Vec<Dots>,
+    pub layers: Vec<Layer>,
     pub arrows: Vec<Arrow>,
 }
 
@@ -62,7 +78,7 @@ pub fn tree_svg(tree: &Tree, title: &str) -> String {
     Figure {
         title: title.to_owned(),
         layers: vec![Layer::rest(tree)],
-        arrows: Vec::new(),
+        ..Figure::default()
     }
     .to_svg()
 }
@@ -87,12 +103,13 @@ impl View {
     }
 }
 
-impl Figure<'_> {
+impl Figure {
     pub fn to_svg(&self) -> String {
         let points: Vec<Point3<f64>> = self
             .layers
             .iter()
             .flat_map(|l| l.positions.iter().copied())
+            .chain(self.dots.iter().flat_map(|d| d.points.iter().copied()))
             .chain(self.arrows.iter().flat_map(|a| [a.from, a.to]))
             .collect();
         let (lo, hi) = bounds(&points);
@@ -149,6 +166,9 @@ impl Figure<'_> {
                     .set("fill", "#555"),
             )
             .add(scale_bar(view));
+        for dots in &self.dots {
+            group = group.add(draw_dots(dots, view));
+        }
         for layer in &self.layers {
             group = group.add(draw_layer(layer, view));
         }
@@ -174,19 +194,38 @@ fn bounds(points: &[Point3<f64>]) -> ([f64; 3], [f64; 3]) {
     (lo, hi)
 }
 
+/// At most this many dots per cloud (a fixed stride through the points).
+const MAX_DOTS: usize = 20_000;
+
+fn draw_dots(dots: &Dots, view: &View) -> Group {
+    let mut group = Group::new().set("fill", dots.colour.as_str());
+    let stride = dots.points.len().div_ceil(MAX_DOTS).max(1);
+    for p in dots.points.iter().step_by(stride) {
+        let (x, y) = view.project(p);
+        group = group.add(
+            Rectangle::new()
+                .set("x", (x * 10.0).round() / 10.0)
+                .set("y", (y * 10.0).round() / 10.0)
+                .set("width", 1)
+                .set("height", 1),
+        );
+    }
+    group
+}
+
 fn draw_layer(layer: &Layer, view: &View) -> Group {
-    let tree = layer.tree;
     let mut group = Group::new().set("opacity", layer.opacity);
     // Thick branches first so thin ones stay visible on top.
-    let mut order: Vec<usize> = (1..tree.len()).collect();
+    let mut order: Vec<usize> = (1..layer.parents.len()).collect();
     order.sort_by(|&a, &b| {
-        let r = |j: usize| tree.branch(j).map_or(0.0, |b| b.radius);
+        let r = |j: usize| layer.radius[j];
         r(b).total_cmp(&r(a)).then(a.cmp(&b))
     });
     for j in order {
-        let (Some(parent), Some(branch)) = (tree.parent(j), tree.branch(j)) else {
+        let Some(parent) = layer.parents[j] else {
             continue;
         };
+        let radius = layer.radius[j];
         let (x1, y1) = view.project(&layer.positions[parent]);
         let (x2, y2) = view.project(&layer.positions[j]);
         group = group.add(
@@ -196,7 +235,7 @@ fn draw_layer(layer: &Layer, view: &View) -> Group {
                 .set("x2", x2)
                 .set("y2", y2)
                 .set("stroke", layer.colour.as_str())
-                .set("stroke-width", (2.0 * branch.radius * view.scale).max(1.0))
+                .set("stroke-width", (2.0 * radius * view.scale).max(1.0))
                 .set("stroke-linecap", "round"),
         );
     }

@@ -19,49 +19,57 @@ where
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
-        let is_json = req
-            .headers()
-            .get(header::CONTENT_TYPE)
-            .and_then(|v| v.to_str().ok())
-            .is_some_and(|v| {
-                let mime = v
-                    .split(';')
-                    .next()
-                    .unwrap_or("")
-                    .trim()
-                    .to_ascii_lowercase();
-                mime == "application/json" || mime.ends_with("+json")
-            });
-        if !is_json {
+        if media_type(&req) != "application/json" && !media_type(&req).ends_with("+json") {
             return Err(ApiError::new(
                 ErrorCode::UnsupportedMediaType,
                 "send the body as JSON with `Content-Type: application/json`",
             ));
         }
-        let bytes = Bytes::from_request(req, state).await.map_err(|rejection| {
-            if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-                ApiError::too_large("the request body is larger than the server accepts")
-            } else {
-                ApiError::malformed(format!(
-                    "cannot read the request body: {}",
-                    rejection.body_text()
-                ))
-            }
-        })?;
-        serde_json::from_slice(&bytes).map(Self).map_err(|e| {
-            let text = String::from_utf8_lossy(&bytes);
-            if e.is_syntax() && (text.contains("NaN") || text.contains("Infinity")) {
-                ApiError::malformed(format!(
-                    "not valid JSON ({e}): JSON has no NaN or Infinity, every number must be finite"
-                ))
-            } else if e.is_syntax() || e.is_eof() {
-                ApiError::malformed(format!("not valid JSON: {e}"))
-            } else {
-                // Valid JSON of the wrong shape: a missing or mistyped field.
-                ApiError::malformed(format!("the request does not match the schema: {e}"))
-            }
-        })
+        let bytes = read_body(req, state).await?;
+        parse_json(&bytes).map(Self)
     }
+}
+
+/// The request's media type, lower case, without parameters ("" if none).
+pub fn media_type(req: &Request) -> String {
+    req.headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.split(';').next())
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase()
+}
+
+/// The whole body, or 413 past the route's body limit.
+pub async fn read_body<S: Send + Sync>(req: Request, state: &S) -> Result<Bytes, ApiError> {
+    Bytes::from_request(req, state).await.map_err(|rejection| {
+        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            ApiError::too_large("the request body is larger than the server accepts")
+        } else {
+            ApiError::malformed(format!(
+                "cannot read the request body: {}",
+                rejection.body_text()
+            ))
+        }
+    })
+}
+
+/// A JSON body as `T`, with messages that say what is wrong.
+pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
+    serde_json::from_slice(bytes).map_err(|e| {
+        let text = String::from_utf8_lossy(bytes);
+        if e.is_syntax() && (text.contains("NaN") || text.contains("Infinity")) {
+            ApiError::malformed(format!(
+                "not valid JSON ({e}): JSON has no NaN or Infinity, every number must be finite"
+            ))
+        } else if e.is_syntax() || e.is_eof() {
+            ApiError::malformed(format!("not valid JSON: {e}"))
+        } else {
+            // Valid JSON of the wrong shape: a missing or mistyped field.
+            ApiError::malformed(format!("the request does not match the schema: {e}"))
+        }
+    })
 }
 
 /// Integer fields of request bodies. JSON Schema's `integer` admits a

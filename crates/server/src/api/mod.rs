@@ -32,6 +32,7 @@
 pub mod domain;
 pub mod drain;
 pub mod error;
+pub mod from_points;
 pub mod health_check;
 pub mod identify;
 pub mod json;
@@ -67,6 +68,7 @@ pub use state::{AppState, Limits, ModelRef, REQUIRED_MODELS};
 
 pub fn router(state: AppState) -> Router {
     let body_limit = state.limits.max_body_bytes;
+    let cloud_limit = state.limits.max_cloud_bytes;
     let mut routes = Router::new();
     if state.limits.fault_injection {
         // For tests of what a bug does to the server: a handler that
@@ -96,6 +98,11 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/identify/probes", post(identify::propose))
         .route("/v1/trees/urdf", post(scene::tree_from_urdf))
         .route("/v1/trees/example", get(scene::example_tree))
+        // Clouds are larger than every other body: their own limit.
+        .route(
+            "/v1/trees/from-points",
+            post(from_points::from_points).layer(DefaultBodyLimit::max(cloud_limit)),
+        )
         .route("/v1/robots", get(robots::robots))
         .route("/v1/robot/link-poses", post(scene::link_poses))
         .route("/viewer", get(viewer::index))

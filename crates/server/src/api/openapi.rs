@@ -13,6 +13,7 @@ use utoipa::openapi::schema::{AdditionalProperties, Schema};
 use utoipa::openapi::{OpenApi as Document, RefOr};
 use utoipa::{Modify, OpenApi};
 
+use crate::api::from_points;
 use crate::api::identify;
 use crate::api::plan;
 use crate::api::predict;
@@ -57,6 +58,7 @@ another replica, after a connection failure, an empty answer, 502 or 503 \
         identify::propose,
         scene::tree_from_urdf,
         scene::example_tree,
+        from_points::from_points,
         scene::link_poses,
         viewer::index,
         v2::server_metadata,

@@ -37,6 +37,13 @@ pub struct ServeArgs {
     /// models run on the embedded tract backend.
     #[arg(long, env = "ORT_DYLIB_PATH")]
     ort_dylib: Option<std::path::PathBuf>,
+    /// Largest point cloud `/v1/trees/from-points` takes (points).
+    #[arg(long, env = "TREEMANIP_MAX_CLOUD_POINTS", default_value_t = treemanip_core::scan::extract::DEFAULT_MAX_POINTS)]
+    max_cloud_points: usize,
+    /// Largest `/v1/trees/from-points` body (bytes): 2 million points as
+    /// binary PLY of doubles are 48 MB, as JSON about 120 MB.
+    #[arg(long, env = "TREEMANIP_MAX_CLOUD_BYTES", default_value_t = 128 << 20)]
+    max_cloud_bytes: usize,
     /// Actions one /v1/forward call may evaluate.
     #[arg(long, env = "TREEMANIP_MAX_ACTIONS", default_value_t = 256)]
     max_actions: usize,
@@ -237,6 +244,8 @@ async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     let limits = Limits {
         max_nodes: args.max_nodes,
         max_body_bytes: args.max_body_bytes,
+        max_cloud_points: args.max_cloud_points.max(1),
+        max_cloud_bytes: args.max_cloud_bytes,
         max_in_flight: args.max_in_flight.unwrap_or(defaults.max_in_flight).max(1),
         request_timeout: std::time::Duration::from_secs_f64(args.request_timeout),
         max_actions: args.max_actions,

@@ -41,6 +41,10 @@ pub struct Limits {
     pub max_nodes: usize,
     /// Largest request body (bytes).
     pub max_body_bytes: usize,
+    /// Largest point cloud of `/v1/trees/from-points` (points).
+    pub max_cloud_points: usize,
+    /// Largest `/v1/trees/from-points` body (bytes).
+    pub max_cloud_bytes: usize,
     /// CPU jobs admitted at once (running or queued); more get 503.
     pub max_in_flight: usize,
     /// Time budget of one request's CPU work.
@@ -61,6 +65,8 @@ impl Default for Limits {
         Self {
             max_nodes: treemanip_core::tree::MAX_NODES,
             max_body_bytes: 1 << 20,
+            max_cloud_points: treemanip_core::scan::extract::DEFAULT_MAX_POINTS,
+            max_cloud_bytes: 128 << 20,
             // Queued model jobs cost a waiting thread, not CPU: admit enough
             // that dynamic batching has work (16 per core) and shed the rest.
             max_in_flight: 16 * cores,

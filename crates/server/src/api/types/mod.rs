@@ -19,6 +19,7 @@ pub mod objective;
 pub mod plan;
 pub mod predict;
 pub mod robots;
+pub mod scan;
 pub mod scene;
 pub mod schema;
 pub mod service;
@@ -42,6 +43,10 @@ pub use plan::{PlanRequest, PlanResponse};
 pub use predict::{ForwardRequest, ForwardResponse, PolicyRequest, PolicyResponse};
 pub use robots::{
     BaseRegionJson, JointLimitsJson, RobotJson, RobotJsonInfo, RobotsResponse, ToolFrameJson,
+};
+pub use scan::{
+    CropJson, DroppedJson, FromPointsOptions, FromPointsQuery, FromPointsRequest,
+    FromPointsResponse,
 };
 pub use scene::{
     BaseJson, LinkJson, LinkPosesRequest, LinkPosesResponse, TreeResponse, UrdfRequest,

@@ -1,0 +1,448 @@
+//! A tree from a point cloud: the parameters, what comes back, and the
+//! steps in order.
+//!
+//! 1. Check the cloud, crop it, refuse planes and lines.
+//! 2. Average the points in cubes of `voxel` (the work then follows the
+//!    bark's area, not the scanner's point count).
+//! 3. Join each cube to its neighbours within a few cubes
+//!    ([`crate::scan::neighbours`]); isolated cubes are outliers.
+//! 4. Find the tree: the connected part holding `root`, or the lowest
+//!    large part; bridge gaps to other parts (an occluded stretch of
+//!    branch) only when the part is large enough to be a branch and the gap
+//!    is at most `max_gap`; what stays apart is a fragment. A second large
+//!    part standing on the ground is a second tree: refused.
+//! 5. Level sets of the geodesic distance from the trunk's base give the
+//!    fine skeleton ([`crate::scan::levels`]), pruned of stubs shorter than
+//!    a leaf; each piece's centre and radius come from a circle fitted
+//!    across the branch, with the parent's radius where a branch is seen
+//!    from one side only.
+//! 6. [`crate::scan::simplify`] keeps a joint at every branch point and
+//!    along branches at most `spacing` apart: the granularity the models
+//!    and the simulator expect.
+
+use nalgebra::{Point3, Vector3};
+use petgraph::unionfind::UnionFind;
+
+use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread, principal_spread};
+use crate::scan::fine::{FineSkeleton, fine_skeleton};
+use crate::scan::neighbours::{Graph, PointIndex};
+use crate::scan::simplify::simplify;
+use crate::scan::skeleton::Skeleton;
+use crate::scan::voxel::voxelize;
+
+/// The returned nodes' default spacing (m): the median branch length of
+/// the paper's generated trees (10-30 nodes, 0.6-1.7 m tall; 420 trees of
+/// the generator, quartiles 0.13 and 0.22 m).
+pub const DEFAULT_SPACING: f64 = 0.18;
+/// Default largest number of points in one cloud.
+pub const DEFAULT_MAX_POINTS: usize = 2_000_000;
+/// A cloud needs at least this many points (after cropping).
+pub const MIN_POINTS: usize = 50;
+/// A given root may be at most this far (m) from the nearest point.
+pub const ROOT_TOLERANCE: f64 = 0.1;
+/// The smallest tree (m, along `up`) the extraction looks for.
+pub const MIN_TREE_HEIGHT: f64 = 0.1;
+
+/// How to read a cloud. Lengths in metres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtractParams {
+    /// Largest distance between consecutive joints along a branch.
+    pub spacing: f64,
+    /// The trunk's base; by default the lowest large connected part's.
+    pub root: Option<Point3<f64>>,
+    /// Which way is up (any length).
+    pub up: Vector3<f64>,
+    pub crop: Option<CropBox>,
+    pub max_points: usize,
+    /// Edge of the averaging cubes.
+    pub voxel: f64,
+    /// Largest gap bridged between a part and the tree.
+    pub max_gap: f64,
+}
+
+impl Default for ExtractParams {
+    fn default() -> Self {
+        Self {
+            spacing: DEFAULT_SPACING,
+            root: None,
+            up: Vector3::z(),
+            crop: None,
+            max_points: DEFAULT_MAX_POINTS,
+            voxel: 0.004,
+            max_gap: 0.06,
+        }
+    }
+}
+
+impl ExtractParams {
+    fn validate(&self) -> Result<Vector3<f64>, CloudError> {
+        let bad = |s: &str| Err(CloudError::BadParameter(s.to_owned()));
+        if !(self.spacing.is_finite() && (0.03..=1.0).contains(&self.spacing)) {
+            return bad("spacing must be between 0.03 and 1 m");
+        }
+        if !(self.voxel.is_finite() && (0.001..=0.05).contains(&self.voxel)) {
+            return bad("voxel must be between 0.001 and 0.05 m");
+        }
+        if !(self.max_gap.is_finite() && (0.0..=0.5).contains(&self.max_gap)) {
+            return bad("max_gap must be between 0 and 0.5 m");
+        }
+        if let Some(root) = self.root
+            && !root.iter().all(|c| c.is_finite())
+        {
+            return bad("root must be finite");
+        }
+        if let Some(crop) = self.crop
+            && (!(crop.min.iter().chain(crop.max.iter())).all(|c| c.is_finite())
+                || (0..3).any(|i| crop.min[i] > crop.max[i]))
+        {
+            return bad("crop must be finite with min <= max on every axis");
+        }
+        let norm = self.up.norm();
+        if !(norm.is_finite() && norm > 1e-9) {
+            return Err(CloudError::BadUp);
+        }
+        Ok(self.up / norm)
+    }
+}
+
+/// Points left out of the tree, by reason.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Dropped {
+    /// Points with no neighbour within the link distance.
+    pub outliers: usize,
+    /// Points of connected parts not joined to the tree (too small to be
+    /// a branch, or too far from it).
+    pub fragments: usize,
+    pub outside_crop: usize,
+}
+
+/// A tree found in a cloud.
+#[derive(Debug, Clone)]
+pub struct Extraction {
+    pub skeleton: Skeleton,
+    /// Per node, 0-1: how well the points around it supported its
+    /// position and radius (1: a full cross-section seen; low: one side
+    /// only, radius borrowed from the parent, few points).
+    pub confidence: Vec<f64>,
+    /// Points in the tree.
+    pub points_used: usize,
+    pub dropped: Dropped,
+    /// What the extraction could not see or had to guess.
+    pub warnings: Vec<String>,
+    /// The fine skeleton before simplification (one node per piece).
+    pub fine: Skeleton,
+}
+
+/// Cubes joined to neighbours within this many cube edges.
+const LINK_VOXELS: f64 = 3.0;
+/// Neighbours per cube in the graph.
+const NEIGHBOURS: usize = 12;
+/// A part needs this many cubes to be bridged to the tree.
+const MIN_PART_VOXELS: usize = 8;
+/// A part is bridged when its length is this many times its width.
+const ELONGATION: f64 = 2.5;
+/// Width of a level set, in cube edges.
+const BIN_VOXELS: f64 = 4.0;
+
+/// Extracts the tree in `cloud`.
+pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction, CloudError> {
+    let up = params.validate()?;
+    cloud.check(params.max_points)?;
+    let mut dropped = Dropped::default();
+    let kept: Vec<Point3<f64>> = match &params.crop {
+        Some(crop) => cloud
+            .points
+            .iter()
+            .filter(|p| crop.contains(p))
+            .copied()
+            .collect(),
+        None => cloud.points.clone(),
+    };
+    dropped.outside_crop = cloud.len() - kept.len();
+    if kept.len() < MIN_POINTS {
+        return Err(CloudError::TooFewInCrop {
+            kept: kept.len(),
+            min: MIN_POINTS,
+        });
+    }
+    check_spread(&kept)?;
+
+    let voxels = voxelize(&kept, params.voxel);
+    let (points, weights) = (&voxels.centres, &voxels.counts);
+    let index = PointIndex::new(points);
+    let link = LINK_VOXELS * params.voxel;
+    let mut graph = Graph::knn(points, &index, NEIGHBOURS, link);
+    let height = |p: &Point3<f64>| p.coords.dot(&up);
+
+    let labels = graph.components(|_, _| true);
+    let parts = labels.iter().max().map_or(0, |m| m + 1);
+    let mut part_voxels = vec![0usize; parts];
+    let mut part_points = vec![0usize; parts];
+    let mut part_low = vec![f64::INFINITY; parts];
+    for (i, &l) in labels.iter().enumerate() {
+        part_voxels[l] += 1;
+        part_points[l] += weights[i];
+        part_low[l] = part_low[l].min(height(&points[i]));
+    }
+    for i in 0..points.len() {
+        if graph.degree(i) == 0 {
+            dropped.outliers += weights[i];
+        }
+    }
+    if graph.len() - (0..points.len()).filter(|&i| graph.degree(i) == 0).count() < MIN_POINTS / 5 {
+        return Err(CloudError::TooFew {
+            got: kept.len() - dropped.outliers,
+            min: MIN_POINTS,
+        });
+    }
+
+    // The tree's part.
+    let largest = part_voxels.iter().copied().max().unwrap_or(0);
+    let main = match params.root {
+        Some(root) => {
+            let (i, d) = index.nearest(&root);
+            if d > ROOT_TOLERANCE {
+                return Err(CloudError::RootOutside {
+                    x: root.x,
+                    y: root.y,
+                    z: root.z,
+                    distance: d,
+                    max: ROOT_TOLERANCE,
+                });
+            }
+            labels[i]
+        }
+        None => (0..parts)
+            .filter(|&l| part_voxels[l] >= MIN_PART_VOXELS.max(largest / 20))
+            .min_by(|&a, &b| part_low[a].total_cmp(&part_low[b]))
+            .unwrap_or(0),
+    };
+
+    // Bridge parts to the tree (Kruskal over the parts' closest pairs).
+    let mut warnings = Vec::new();
+    let bridges = bridges(points, &labels, &part_voxels, main, params.max_gap);
+    let mut sets = UnionFind::<usize>::new(parts);
+    let mut edges: Vec<(usize, usize, f64)> = Vec::new();
+    let mut largest_bridge: f64 = 0.0;
+    for &(d, a, b) in &bridges {
+        if sets.union(labels[a], labels[b]) {
+            edges.push((a, b, d));
+            largest_bridge = largest_bridge.max(d);
+        }
+    }
+    let in_tree = |l: usize, sets: &mut UnionFind<usize>| sets.equiv(l, main);
+    let tree_edges: Vec<_> = edges
+        .into_iter()
+        .filter(|e| in_tree(labels[e.0], &mut sets))
+        .collect();
+    if !tree_edges.is_empty() {
+        warnings.push(format!(
+            "{} gaps in the points were bridged (the largest {:.1} cm): occluded or unsampled stretches of branch",
+            tree_edges.len(),
+            largest_bridge * 100.0
+        ));
+    }
+    let main_low = (0..parts)
+        .filter(|&l| in_tree(l, &mut sets))
+        .map(|l| part_low[l])
+        .fold(f64::INFINITY, f64::min);
+    let main_points: usize = (0..parts)
+        .filter(|&l| in_tree(l, &mut sets))
+        .map(|l| part_points[l])
+        .sum();
+    // A second tree: a large part apart from this one, standing as low.
+    for l in 0..parts {
+        if in_tree(l, &mut sets) || part_points[l] * 5 < main_points {
+            continue;
+        }
+        if params.root.is_none() && part_low[l] < main_low + 0.15 {
+            let distance = part_distance(points, &labels, main, l);
+            return Err(CloudError::SeveralTrees {
+                points: part_points[l],
+                distance,
+            });
+        }
+    }
+    for l in 0..parts {
+        if !in_tree(l, &mut sets) && part_voxels[l] > 1 {
+            dropped.fragments += part_points[l];
+        }
+    }
+    let mut all_edges = graph_edges(&graph);
+    all_edges.extend(tree_edges);
+    graph = Graph::from_edges(points.len(), &all_edges);
+
+    let members: Vec<usize> = (0..points.len())
+        .filter(|&i| in_tree(labels[i], &mut sets))
+        .collect();
+    let (lo, hi) = members
+        .iter()
+        .map(|&i| height(&points[i]))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), h| {
+            (a.min(h), b.max(h))
+        });
+    if hi - lo < MIN_TREE_HEIGHT || members.len() < MIN_PART_VOXELS {
+        return Err(CloudError::NoTree {
+            largest: main_points,
+            extent: (hi - lo).max(0.0),
+            min_extent: MIN_TREE_HEIGHT,
+        });
+    }
+
+    // The trunk's base: the bottom slice of the tree (near the root when
+    // one is given).
+    let bin = BIN_VOXELS * params.voxel;
+    let sources: Vec<usize> = match params.root {
+        Some(root) => members
+            .iter()
+            .copied()
+            .filter(|&i| {
+                let d = points[i] - root;
+                let along = d.dot(&up);
+                (along.abs() <= bin) && (d - up * along).norm() < 0.15
+            })
+            .collect(),
+        None => members
+            .iter()
+            .copied()
+            .filter(|&i| height(&points[i]) <= lo + bin)
+            .collect(),
+    };
+    let sources = if sources.is_empty() {
+        vec![index.nearest(&params.root.unwrap_or(Point3::origin())).0]
+    } else {
+        sources
+    };
+    let (dist, pred) = graph.shortest_paths(&sources);
+
+    let FineSkeleton {
+        skeleton: fine,
+        confidence: fine_confidence,
+        points_used,
+        notes,
+    } = fine_skeleton(
+        points,
+        weights,
+        &graph,
+        &dist,
+        &pred,
+        bin,
+        params.spacing,
+        &up,
+    );
+    warnings.extend(notes);
+    let (skeleton, confidence) = simplify(&fine, &fine_confidence, params.spacing);
+    Ok(Extraction {
+        skeleton,
+        confidence,
+        points_used,
+        dropped,
+        warnings,
+        fine,
+    })
+}
+
+fn graph_edges(graph: &Graph) -> Vec<(usize, usize, f64)> {
+    (0..graph.len())
+        .flat_map(|a| {
+            graph
+                .neighbours(a)
+                .filter(move |&(b, _)| a < b)
+                .map(move |(b, d)| (a, b, d))
+        })
+        .collect()
+}
+
+/// The closest pair of points of every two parts (of at least
+/// [`MIN_PART_VOXELS`] cubes) at most `max_gap` apart, shortest first.
+fn bridges(
+    points: &[Point3<f64>],
+    labels: &[usize],
+    part_voxels: &[usize],
+    main: usize,
+    max_gap: f64,
+) -> Vec<(f64, usize, usize)> {
+    let parts = part_voxels.len();
+    let mut of_part: Vec<Vec<usize>> = vec![Vec::new(); parts];
+    for (i, &l) in labels.iter().enumerate() {
+        if part_voxels[l] >= MIN_PART_VOXELS {
+            of_part[l].push(i);
+        }
+    }
+    // A part is bridged only when it is shaped like a stretch of branch
+    // (at least ELONGATION times longer than wide): a leaf or a fruit seen
+    // apart from its twig is not.
+    let elongated = |l: usize| {
+        let pts: Vec<Point3<f64>> = of_part[l].iter().map(|&i| points[i]).collect();
+        let (spread, _) = principal_spread(&pts);
+        spread[0] >= ELONGATION * spread[1]
+    };
+    let big: Vec<usize> = (0..parts)
+        .filter(|&l| !of_part[l].is_empty() && (l == main || elongated(l)))
+        .collect();
+    if big.len() < 2 || max_gap <= 0.0 {
+        return Vec::new();
+    }
+    let boxes: Vec<(Vector3<f64>, Vector3<f64>)> = big
+        .iter()
+        .map(|&l| {
+            of_part[l].iter().fold(
+                (
+                    Vector3::repeat(f64::INFINITY),
+                    Vector3::repeat(f64::NEG_INFINITY),
+                ),
+                |(lo, hi), &i| (lo.inf(&points[i].coords), hi.sup(&points[i].coords)),
+            )
+        })
+        .collect();
+    let trees: Vec<PointIndex> = big
+        .iter()
+        .map(|&l| {
+            let pts: Vec<_> = of_part[l].iter().map(|&i| points[i]).collect();
+            PointIndex::new(&pts)
+        })
+        .collect();
+    let mut out = Vec::new();
+    for x in 0..big.len() {
+        for y in x + 1..big.len() {
+            let (a, b) = (&boxes[x], &boxes[y]);
+            let apart = (0..3).any(|k| a.0[k] > b.1[k] + max_gap || b.0[k] > a.1[k] + max_gap);
+            if apart {
+                continue;
+            }
+            // Query the smaller part's points in the larger part's tree.
+            let (s, t) = if of_part[big[x]].len() <= of_part[big[y]].len() {
+                (x, y)
+            } else {
+                (y, x)
+            };
+            let best = of_part[big[s]]
+                .iter()
+                .map(|&i| {
+                    let (j, d) = trees[t].nearest(&points[i]);
+                    (d, i, of_part[big[t]][j])
+                })
+                .min_by(|p, q| p.0.total_cmp(&q.0));
+            if let Some(best) = best
+                && best.0 <= max_gap
+            {
+                out.push(best);
+            }
+        }
+    }
+    out.sort_by(|p, q| p.0.total_cmp(&q.0));
+    out
+}
+
+/// Closest distance between two parts' points (m).
+fn part_distance(points: &[Point3<f64>], labels: &[usize], a: usize, b: usize) -> f64 {
+    let pa: Vec<_> = (0..points.len())
+        .filter(|&i| labels[i] == a)
+        .map(|i| points[i])
+        .collect();
+    let index = PointIndex::new(&pa);
+    (0..points.len())
+        .filter(|&i| labels[i] == b)
+        .map(|i| index.nearest(&points[i]).1)
+        .fold(f64::INFINITY, f64::min)
+}

@@ -1,0 +1,331 @@
+//! The fine skeleton: one node per cross-section piece, pruned of stubs,
+//! placed on the fitted branch axis, with radii smoothed along each branch
+//! and borrowed from the parent where a branch was seen from one side.
+
+use nalgebra::{Point3, Vector3};
+
+use crate::scan::forks::relocate_forks;
+use crate::scan::levels::{Piece, cross_section, pieces};
+use crate::scan::neighbours::Graph;
+use crate::scan::skeleton::Skeleton;
+
+/// The fine skeleton and what was learnt making it.
+pub struct FineSkeleton {
+    pub skeleton: Skeleton,
+    pub confidence: Vec<f64>,
+    /// Raw points in the kept pieces.
+    pub points_used: usize,
+    /// Warnings for the caller.
+    pub notes: Vec<String>,
+}
+
+/// A fitted cross-section counts when its points span at least this angle
+/// (rad): about a quarter turn.
+const MIN_COVERAGE: f64 = 1.6;
+/// Full confidence from this coverage (rad, two thirds of a turn).
+const FULL_COVERAGE: f64 = 4.2;
+/// Raw points a piece needs for full confidence.
+const FULL_SUPPORT: f64 = 30.0;
+
+#[allow(clippy::too_many_arguments)]
+pub fn fine_skeleton(
+    points: &[Point3<f64>],
+    weights: &[usize],
+    graph: &Graph,
+    dist: &[f64],
+    pred: &[Option<usize>],
+    bin: f64,
+    spacing: f64,
+    up: &Vector3<f64>,
+) -> FineSkeleton {
+    let all = pieces(points, weights, graph, dist, pred, bin);
+    let prune_length = (3.0 * bin).max(0.35 * spacing);
+    let (pieces, pruned) = prune(all, prune_length);
+    let mut notes = Vec::new();
+    if pruned > 0 {
+        notes.push(format!(
+            "{pruned} stubs shorter than {:.1} cm were pruned (leaves, fruit or noise beside a branch)",
+            prune_length * 100.0
+        ));
+    }
+    let n = pieces.len();
+    let mut children = vec![Vec::new(); n];
+    for (k, p) in pieces.iter().enumerate() {
+        if let Some(q) = p.parent {
+            children[q].push(k);
+        }
+    }
+    // Axis of each piece: from its parent toward its children.
+    let axes: Vec<Vector3<f64>> = (0..n)
+        .map(|k| {
+            let from = pieces[k]
+                .parent
+                .map_or(pieces[k].centroid, |q| pieces[q].centroid);
+            let to = if children[k].is_empty() {
+                pieces[k].centroid
+            } else {
+                Point3::from(
+                    children[k]
+                        .iter()
+                        .map(|&c| pieces[c].centroid.coords)
+                        .sum::<Vector3<f64>>()
+                        / children[k].len() as f64,
+                )
+            };
+            let a = to - from;
+            if a.norm() > 1e-9 { a.normalize() } else { *up }
+        })
+        .collect();
+    let mut positions = Vec::with_capacity(n);
+    let mut fitted: Vec<Option<f64>> = Vec::with_capacity(n);
+    let mut confidence = Vec::with_capacity(n);
+    for (k, piece) in pieces.iter().enumerate() {
+        let support = (piece.weight as f64 / FULL_SUPPORT).min(1.0);
+        let fit = cross_section(points, &piece.members, &piece.centroid, &axes[k]).filter(
+            |(centre, c)| {
+                piece.members.len() >= 6
+                    && c.coverage >= MIN_COVERAGE
+                    && c.radius >= 0.0005
+                    && c.radius <= piece.spread + 0.002
+                    && c.rms <= (0.5 * c.radius).max(0.003)
+                    && (centre - piece.centroid).norm() <= c.radius + 0.003
+            },
+        );
+        let fit = fit.map(|(mut centre, c)| {
+            if k == 0 {
+                // The root sits on the ground: at the bottom of its piece.
+                let low = piece
+                    .members
+                    .iter()
+                    .map(|&i| points[i].coords.dot(up))
+                    .fold(f64::INFINITY, f64::min);
+                centre += up * (low - centre.coords.dot(up));
+            }
+            (centre, c)
+        });
+        match fit {
+            Some((centre, c)) => {
+                positions.push(centre);
+                fitted.push(Some(c.radius));
+                confidence.push(support * (c.coverage / FULL_COVERAGE).min(1.0));
+            }
+            None => {
+                positions.push(piece.centroid);
+                fitted.push(None);
+                confidence.push(0.3 * support);
+            }
+        }
+    }
+    let parents: Vec<Option<usize>> = pieces.iter().map(|p| p.parent).collect();
+    let mut skeleton = Skeleton {
+        positions,
+        parents,
+        radius: vec![0.0; n],
+    };
+    let keep = relocate_forks(&mut skeleton);
+    let (skeleton_kept, kept) = compact(&skeleton, &keep);
+    skeleton = skeleton_kept;
+    let fitted: Vec<Option<f64>> = kept.iter().map(|&k| fitted[k]).collect();
+    let confidence: Vec<f64> = kept.iter().map(|&k| confidence[k]).collect();
+    let borrowed = smooth_radii(&mut skeleton, &fitted);
+    if borrowed > 0 {
+        notes.push(format!(
+            "{borrowed} of {n} cross-sections were seen from too narrow an angle to fit a radius; their radius comes from the branch around them or its parent"
+        ));
+    }
+    FineSkeleton {
+        points_used: kept.iter().map(|&k| pieces[k].weight).sum(),
+        skeleton,
+        confidence,
+        notes,
+    }
+}
+
+fn median(values: &mut [f64]) -> Option<f64> {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied()
+}
+
+/// A side branch shorter than this (m) that is wider than its parent is a
+/// leaf (an apple leaf is 5-10 cm long).
+const LEAF_LENGTH: f64 = 0.12;
+/// "Wider": this many times the parent's piece spread ...
+const LEAF_WIDTH_RATIO: f64 = 1.5;
+/// ... plus this (m), for noise.
+const LEAF_WIDTH_SLACK: f64 = 0.003;
+
+/// The nodes `keep` marks, renumbered, and the old index of each.
+fn compact(skeleton: &Skeleton, keep: &[bool]) -> (Skeleton, Vec<usize>) {
+    let kept: Vec<usize> = (0..skeleton.len()).filter(|&k| keep[k]).collect();
+    let mut new_id = vec![usize::MAX; skeleton.len()];
+    for (i, &k) in kept.iter().enumerate() {
+        new_id[k] = i;
+    }
+    let out = Skeleton {
+        positions: kept.iter().map(|&k| skeleton.positions[k]).collect(),
+        parents: kept
+            .iter()
+            .map(|&k| skeleton.parents[k].map(|p| new_id[p]))
+            .collect(),
+        radius: kept.iter().map(|&k| skeleton.radius[k]).collect(),
+    };
+    (out, kept)
+}
+
+/// Removes side branches shorter than `length` that end in a tip (when a
+/// fork's every arm is that short, the longest stays), until none is
+/// left. Returns the kept pieces (renumbered, parents first) and how many
+/// stubs went.
+fn prune(mut pieces: Vec<Piece>, length: f64) -> (Vec<Piece>, usize) {
+    let mut removed_stubs = 0;
+    loop {
+        let n = pieces.len();
+        let mut children = vec![Vec::new(); n];
+        for (k, p) in pieces.iter().enumerate() {
+            if let Some(q) = p.parent {
+                children[q].push(k);
+            }
+        }
+        // Length of the single-child run from each fork child to its tip
+        // (None when it forks again).
+        let run = |start: usize| -> Option<(f64, Vec<usize>)> {
+            let mut nodes = vec![start];
+            let mut at = start;
+            let mut len = (pieces[start].centroid
+                - pieces[pieces[start].parent.unwrap_or(start)].centroid)
+                .norm();
+            while children[at].len() == 1 {
+                let next = children[at][0];
+                len += (pieces[next].centroid - pieces[at].centroid).norm();
+                nodes.push(next);
+                at = next;
+            }
+            children[at].is_empty().then_some((len, nodes))
+        };
+        let mut remove = vec![false; n];
+        let mut any = false;
+        for fork in 0..n {
+            if children[fork].len() < 2 {
+                continue;
+            }
+            let runs: Vec<(usize, Option<(f64, Vec<usize>)>)> =
+                children[fork].iter().map(|&c| (c, run(c))).collect();
+            let longest_arm = runs
+                .iter()
+                .map(|(_, r)| r.as_ref().map_or(f64::INFINITY, |r| r.0))
+                .fold(0.0, f64::max);
+            let mut kept_one = longest_arm >= length;
+            // How wide the branch is below the fork.
+            let mut below = Vec::new();
+            let mut at = fork;
+            while let Some(p) = pieces[at].parent {
+                below.push(pieces[p].spread);
+                if below.len() == 3 {
+                    break;
+                }
+                at = p;
+            }
+            let parent_width = median(&mut below).unwrap_or(f64::INFINITY);
+            // A stub is too short to be a twig, or short and wider than
+            // the branch it would grow from (a leaf: a twig is never wider
+            // than its parent).
+            let leafy = |r: &(f64, Vec<usize>)| {
+                let mut widths: Vec<f64> = r.1.iter().map(|&k| pieces[k].spread).collect();
+                r.0 < LEAF_LENGTH
+                    && median(&mut widths)
+                        .is_some_and(|w| w > LEAF_WIDTH_RATIO * parent_width + LEAF_WIDTH_SLACK)
+            };
+            // Shortest stubs go first; the longest of an all-stub fork stays.
+            let mut stubs: Vec<&(f64, Vec<usize>)> = runs
+                .iter()
+                .filter_map(|(_, r)| r.as_ref())
+                .filter(|r| r.0 < length || leafy(r))
+                .collect();
+            stubs.sort_by(|a, b| b.0.total_cmp(&a.0));
+            for stub in stubs {
+                if !kept_one {
+                    kept_one = true;
+                    continue;
+                }
+                for &k in &stub.1 {
+                    remove[k] = true;
+                }
+                removed_stubs += 1;
+                any = true;
+            }
+        }
+        if !any {
+            return (pieces, removed_stubs);
+        }
+        let mut new_id = vec![usize::MAX; n];
+        let mut next = 0;
+        for k in 0..n {
+            if !remove[k] {
+                new_id[k] = next;
+                next += 1;
+            }
+        }
+        pieces = pieces
+            .into_iter()
+            .enumerate()
+            .filter(|(k, _)| !remove[*k])
+            .map(|(_, mut p)| {
+                p.parent = p.parent.map(|q| new_id[q]);
+                p
+            })
+            .collect();
+    }
+}
+
+/// Each branch's radii: the median of the fitted radii within two pieces
+/// either side; where none was fitted, the branch's median, else the
+/// parent branch's radius where it starts. A branch is never thicker than
+/// the one it grows from. Returns how many radii were not fitted.
+fn smooth_radii(skeleton: &mut Skeleton, fitted: &[Option<f64>]) -> usize {
+    let (chains, _) = skeleton.chains();
+    let n = skeleton.len();
+    let mut radius = vec![f64::NAN; n];
+    // The root's radius: its own fit or its first chain's.
+    let mut borrowed = 0;
+    for chain in &chains {
+        let nodes = &chain.nodes[1..];
+        let start_radius = radius[chain.nodes[0]];
+        let values: Vec<Option<f64>> = nodes.iter().map(|&k| fitted[k]).collect();
+        let mut known: Vec<f64> = values.iter().flatten().copied().collect();
+        known.sort_by(f64::total_cmp);
+        let chain_median = known.get(known.len() / 2).copied();
+        for (x, &k) in nodes.iter().enumerate() {
+            let lo = x.saturating_sub(2);
+            let hi = (x + 3).min(nodes.len());
+            let mut window: Vec<f64> = values[lo..hi].iter().flatten().copied().collect();
+            window.sort_by(f64::total_cmp);
+            let r = match window.get(window.len() / 2) {
+                Some(&r) => r,
+                None => {
+                    borrowed += 1;
+                    chain_median
+                        .or((!start_radius.is_nan()).then_some(start_radius))
+                        .unwrap_or(0.005)
+                }
+            };
+            radius[k] = if start_radius.is_nan() {
+                r
+            } else {
+                r.min(start_radius)
+            };
+        }
+        if chain.nodes[0] == 0 && radius[0].is_nan() {
+            radius[0] = fitted[0].unwrap_or(radius[nodes[0]]);
+        }
+    }
+    if radius[0].is_nan() {
+        radius[0] = fitted[0].unwrap_or(0.005);
+    }
+    for r in &mut radius {
+        if r.is_nan() {
+            *r = 0.005;
+        }
+    }
+    skeleton.radius = radius;
+    borrowed
+}

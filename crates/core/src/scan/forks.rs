@@ -1,0 +1,182 @@
+//! Forks where the branches meet. Level sets part a fork's arms only once
+//! the arms are apart, so the last pieces below a fork hold both arms and
+//! their centre lies between them, a few centimetres past the true fork.
+//! Here each fork moves to the point nearest the axes of its parent branch
+//! and of its arms (least squares over the lines fitted to the pieces
+//! clear of the fork), and the merged pieces beyond that point go.
+
+use nalgebra::{Matrix3, Point3, Vector3};
+
+use crate::scan::cloud::principal_spread;
+use crate::scan::skeleton::Skeleton;
+
+/// Arm pieces used for an arm's axis: this far from the fork (m).
+const ARM_RANGE: (f64, f64) = (0.015, 0.08);
+/// Parent pieces used for the parent's axis: this far below the fork (m).
+const PARENT_RANGE: (f64, f64) = (0.03, 0.12);
+/// Pieces closer than this (m) below a moved fork go too.
+const MIN_SEGMENT: f64 = 0.005;
+/// A fork moves at most this far (m).
+const MAX_MOVE: f64 = 0.08;
+
+/// Moves the forks of `skeleton` and returns which nodes stay (the merged
+/// pieces between a moved fork and its old place do not).
+pub fn relocate_forks(skeleton: &mut Skeleton) -> Vec<bool> {
+    let n = skeleton.len();
+    let children = skeleton.children();
+    let mut keep = vec![true; n];
+    for f in 0..n {
+        if children[f].len() < 2 || skeleton.parents[f].is_none() {
+            continue;
+        }
+        let pos = &skeleton.positions;
+        // Each arm's axis.
+        let mut lines: Vec<(Point3<f64>, Vector3<f64>)> = Vec::new();
+        for &c in &children[f] {
+            let mut run = Vec::new();
+            let (mut at, mut arc, mut prev) = (c, 0.0, f);
+            loop {
+                arc += (pos[at] - pos[prev]).norm();
+                if arc > ARM_RANGE.1 {
+                    break;
+                }
+                if arc >= ARM_RANGE.0 {
+                    run.push(pos[at]);
+                }
+                if children[at].len() != 1 {
+                    break;
+                }
+                prev = at;
+                at = children[at][0];
+            }
+            if let Some(line) = axis(&run) {
+                lines.push(line);
+            }
+        }
+        if lines.len() < 2 {
+            continue;
+        }
+        // The parent's axis, and the pieces a moved fork may pass.
+        let mut below = Vec::new();
+        let mut run = Vec::new();
+        let (mut at, mut arc) = (f, 0.0);
+        while let Some(p) = skeleton.parents[at] {
+            arc += (pos[at] - pos[p]).norm();
+            if arc > PARENT_RANGE.1.max(MAX_MOVE) {
+                break;
+            }
+            if (PARENT_RANGE.0..=PARENT_RANGE.1).contains(&arc) {
+                run.push(pos[p]);
+            }
+            if arc <= MAX_MOVE {
+                below.push(p);
+            }
+            if children[p].len() != 1 || skeleton.parents[p].is_none() {
+                break;
+            }
+            at = p;
+        }
+        let Some(parent_line) = axis(&run) else {
+            continue;
+        };
+        // Orient the parent axis toward the fork.
+        let toward = if (pos[f] - parent_line.0).dot(&parent_line.1) >= 0.0 {
+            parent_line.1
+        } else {
+            -parent_line.1
+        };
+        lines.push((parent_line.0, toward));
+        let Some(x) = nearest_to_lines(&lines) else {
+            continue;
+        };
+        if (x - pos[f]).norm() > MAX_MOVE {
+            continue;
+        }
+        // Pieces past the new fork along the parent's axis go; the fork
+        // hangs from the first one below it.
+        let mut new_parent = skeleton.parents[f];
+        for &b in &below {
+            if children[b].len() != 1 || !keep[b] {
+                break;
+            }
+            if (pos[b] - x).dot(&toward) > -MIN_SEGMENT {
+                keep[b] = false;
+                new_parent = skeleton.parents[b];
+            } else {
+                break;
+            }
+        }
+        skeleton.parents[f] = new_parent;
+        skeleton.positions[f] = x;
+    }
+    keep
+}
+
+/// A line through points (their mean and principal direction), from three.
+fn axis(points: &[Point3<f64>]) -> Option<(Point3<f64>, Vector3<f64>)> {
+    if points.len() < 3 {
+        return None;
+    }
+    let mean = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64;
+    let (spread, axes) = principal_spread(points);
+    (spread[0] > 1e-4).then(|| (Point3::from(mean), axes.column(0).into_owned()))
+}
+
+/// The point with the least sum of squared distances to the lines.
+fn nearest_to_lines(lines: &[(Point3<f64>, Vector3<f64>)]) -> Option<Point3<f64>> {
+    let mut a = Matrix3::zeros();
+    let mut b = Vector3::zeros();
+    for (c, d) in lines {
+        let d = d.normalize();
+        let m = Matrix3::identity() - d * d.transpose();
+        a += m;
+        b += m * c.coords;
+    }
+    // Parallel lines leave the system singular: no fork point.
+    let eig = a.symmetric_eigenvalues();
+    if eig.min() < 0.05 * eig.max() {
+        return None;
+    }
+    a.lu().solve(&b).map(Point3::from)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_fork_found_late_moves_back_to_where_the_axes_meet() {
+        // A trunk up the z axis to 0.3 m, two arms at ±45° from there; the
+        // level sets found the fork at 0.33 m with two merged pieces.
+        let mut positions = Vec::new();
+        let mut parents = Vec::new();
+        for i in 0..=15usize {
+            positions.push(Point3::new(0.0, 0.0, i as f64 * 0.02));
+            parents.push(i.checked_sub(1));
+        }
+        positions.push(Point3::new(0.0, 0.0, 0.315));
+        parents.push(Some(15));
+        positions.push(Point3::new(0.0, 0.0, 0.33));
+        parents.push(Some(16));
+        let fork = positions.len() - 1;
+        for side in [-1.0, 1.0] {
+            let mut prev = fork;
+            for k in 3..10 {
+                let s = k as f64 * 0.01;
+                positions.push(Point3::new(side * s, 0.0, 0.3 + s));
+                parents.push(Some(prev));
+                prev = positions.len() - 1;
+            }
+        }
+        let n = positions.len();
+        let mut skeleton = Skeleton {
+            positions,
+            parents,
+            radius: vec![0.01; n],
+        };
+        let keep = relocate_forks(&mut skeleton);
+        assert!((skeleton.positions[fork] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6);
+        assert!(!keep[16] && !keep[15] && keep[14]);
+        assert_eq!(skeleton.parents[fork], Some(14));
+    }
+}

@@ -1,0 +1,56 @@
+//! Point cloud files: PLY (ply-rs-bw), PCD (pcd-rs), LAS and LAZ (las),
+//! and XYZ text (three numbers per line). Every reader stops at
+//! `max_points` and names what is wrong with a file.
+
+pub mod las;
+pub mod pcd;
+pub mod ply;
+pub mod xyz;
+
+use std::path::Path;
+
+use crate::scan::cloud::PointCloud;
+
+/// Why a file holds no readable cloud.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FormatError {
+    #[error("cannot read {0}")]
+    Io(String),
+    #[error("not a valid {format} file: {reason}")]
+    Parse {
+        format: &'static str,
+        reason: String,
+    },
+    #[error("the {format} file has no `{what}`")]
+    Missing {
+        format: &'static str,
+        what: &'static str,
+    },
+    #[error("the file has {got} points, more than the limit of {max}")]
+    TooMany { got: u64, max: usize },
+    #[error("unknown point cloud format `{0}`: use .ply, .pcd, .las, .laz or .xyz")]
+    UnknownFormat(String),
+}
+
+/// Reads a cloud, choosing the format by the file's extension.
+pub fn read_path(path: &Path, max_points: usize) -> Result<PointCloud, FormatError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    let io = |e: std::io::Error| FormatError::Io(format!("{}: {e}", path.display()));
+    match ext.as_str() {
+        "ply" => {
+            let file = std::fs::File::open(path).map_err(io)?;
+            ply::read(std::io::BufReader::new(file), max_points)
+        }
+        "pcd" => pcd::read(path, max_points),
+        "las" | "laz" => las::read(path, max_points),
+        "xyz" | "txt" | "pts" => {
+            let file = std::fs::File::open(path).map_err(io)?;
+            xyz::read(std::io::BufReader::new(file), max_points)
+        }
+        other => Err(FormatError::UnknownFormat(other.to_owned())),
+    }
+}

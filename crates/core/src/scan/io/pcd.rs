@@ -1,0 +1,62 @@
+//! PCD (the Point Cloud Library's format, through pcd-rs): ASCII, binary
+//! or compressed, the `x`, `y`, `z` fields of any numeric type. The point
+//! count in the header is checked against the limit before any point is
+//! read.
+
+use std::path::Path;
+
+use nalgebra::Point3;
+use pcd_rs::{DynReader, Field};
+
+use super::FormatError;
+use crate::scan::cloud::PointCloud;
+
+const FORMAT: &str = "PCD";
+
+pub fn read(path: &Path, max_points: usize) -> Result<PointCloud, FormatError> {
+    let parse = |e: pcd_rs::Error| FormatError::Parse {
+        format: FORMAT,
+        reason: e.to_string(),
+    };
+    let reader = DynReader::open(path).map_err(parse)?;
+    let meta = reader.meta();
+    if meta.num_points > max_points as u64 {
+        return Err(FormatError::TooMany {
+            got: meta.num_points,
+            max: max_points,
+        });
+    }
+    let index = |name: &'static str| {
+        meta.field_defs
+            .fields
+            .iter()
+            .position(|f| f.name == name)
+            .ok_or(FormatError::Missing {
+                format: FORMAT,
+                what: name,
+            })
+    };
+    let (ix, iy, iz) = (index("x")?, index("y")?, index("z")?);
+    let mut points = Vec::with_capacity(meta.num_points as usize);
+    for record in reader {
+        let record = record.map_err(parse)?;
+        let get = |i: usize| record.0.get(i).and_then(first).unwrap_or(f64::NAN);
+        points.push(Point3::new(get(ix), get(iy), get(iz)));
+    }
+    Ok(PointCloud::new(points))
+}
+
+fn first(field: &Field) -> Option<f64> {
+    Some(match field {
+        Field::I8(v) => *v.first()? as f64,
+        Field::I16(v) => *v.first()? as f64,
+        Field::I32(v) => *v.first()? as f64,
+        Field::I64(v) => *v.first()? as f64,
+        Field::U8(v) => *v.first()? as f64,
+        Field::U16(v) => *v.first()? as f64,
+        Field::U32(v) => *v.first()? as f64,
+        Field::U64(v) => *v.first()? as f64,
+        Field::F32(v) => *v.first()? as f64,
+        Field::F64(v) => *v.first()?,
+    })
+}

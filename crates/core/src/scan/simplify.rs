@@ -1,0 +1,153 @@
+//! From the fine skeleton (a node every few millimetres) to the joints the
+//! simulator and the models expect: every branch point and tip stays; along
+//! a branch a joint stays where the branch bends (Douglas-Peucker, with a
+//! tolerance of half the radius, at least 3 mm) and where the joints would
+//! otherwise be more than `spacing` apart, and never closer than
+//! [`MIN_JOINT_SPACING`] to the joint before.
+
+use crate::scan::skeleton::{Skeleton, point_segment};
+
+/// Joints along a branch are at least this far apart (m): the generator's
+/// spacing, which the gripper needs to tell nodes apart.
+pub const MIN_JOINT_SPACING: f64 = crate::tree::sca::MIN_NODE_SPACING;
+
+/// The simplified skeleton and each joint's confidence (the mean over the
+/// fine nodes it stands for).
+pub fn simplify(fine: &Skeleton, confidence: &[f64], spacing: f64) -> (Skeleton, Vec<f64>) {
+    let (chains, _) = fine.chains();
+    let mut out = Skeleton {
+        positions: vec![fine.positions[0]],
+        parents: vec![None],
+        radius: vec![fine.radius[0]],
+    };
+    let mut out_confidence = vec![confidence[0]];
+    let mut coarse = vec![usize::MAX; fine.len()];
+    coarse[0] = 0;
+    for chain in &chains {
+        let nodes = &chain.nodes;
+        let keep = joints(fine, nodes, spacing);
+        let mut prev = coarse[nodes[0]];
+        let mut span_start = 1;
+        for &x in &keep {
+            let span = &nodes[span_start..=x];
+            let mut radii: Vec<f64> = span.iter().map(|&k| fine.radius[k]).collect();
+            radii.sort_by(f64::total_cmp);
+            let id = out.positions.len();
+            out.positions.push(fine.positions[nodes[x]]);
+            out.parents.push(Some(prev));
+            out.radius.push(radii[radii.len() / 2]);
+            out_confidence
+                .push(span.iter().map(|&k| confidence[k]).sum::<f64>() / span.len() as f64);
+            coarse[nodes[x]] = id;
+            prev = id;
+            span_start = x + 1;
+        }
+    }
+    (out, out_confidence)
+}
+
+/// Which of a chain's nodes (indices into `nodes`, past the first) become
+/// joints, in order; the last always does.
+fn joints(fine: &Skeleton, nodes: &[usize], spacing: f64) -> Vec<usize> {
+    let last = nodes.len() - 1;
+    let mut keep = vec![false; nodes.len()];
+    keep[0] = true;
+    keep[last] = true;
+    douglas_peucker(fine, nodes, 0, last, &mut keep);
+    // Arc length along the chain.
+    let mut arc = vec![0.0; nodes.len()];
+    for x in 1..nodes.len() {
+        arc[x] = arc[x - 1] + (fine.positions[nodes[x]] - fine.positions[nodes[x - 1]]).norm();
+    }
+    // Split long stretches at about equal arc lengths.
+    let kept: Vec<usize> = (0..nodes.len()).filter(|&x| keep[x]).collect();
+    for w in kept.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let len = arc[b] - arc[a];
+        let parts = (len / spacing).ceil() as usize;
+        for p in 1..parts {
+            let target = arc[a] + len * p as f64 / parts as f64;
+            let x = (a..=b)
+                .min_by(|&x, &y| (arc[x] - target).abs().total_cmp(&(arc[y] - target).abs()))
+                .unwrap_or(a);
+            keep[x] = true;
+        }
+    }
+    // Never closer than the minimum spacing to the previous joint; the
+    // tip stays (the previous one goes instead, unless it is the start).
+    let mut out: Vec<usize> = Vec::new();
+    let mut prev = 0;
+    for x in 1..nodes.len() {
+        if !keep[x] {
+            continue;
+        }
+        if arc[x] - arc[prev] < MIN_JOINT_SPACING {
+            if x == last {
+                if let Some(&p) = out.last()
+                    && p != 0
+                    && arc[x] - arc[out.get(out.len().wrapping_sub(2)).copied().unwrap_or(0)]
+                        <= spacing
+                {
+                    out.pop();
+                }
+                out.push(x);
+            }
+            continue;
+        }
+        out.push(x);
+        prev = x;
+    }
+    out
+}
+
+fn douglas_peucker(fine: &Skeleton, nodes: &[usize], a: usize, b: usize, keep: &mut [bool]) {
+    if b <= a + 1 {
+        return;
+    }
+    let (pa, pb) = (fine.positions[nodes[a]], fine.positions[nodes[b]]);
+    let (far, dev) = (a + 1..b)
+        .map(|x| (x, point_segment(&fine.positions[nodes[x]], &pa, &pb).0))
+        .max_by(|p, q| p.1.total_cmp(&q.1))
+        .unwrap_or((a, 0.0));
+    let tolerance = (0.5 * fine.radius[nodes[far]]).max(0.003);
+    if dev > tolerance {
+        keep[far] = true;
+        douglas_peucker(fine, nodes, a, far, keep);
+        douglas_peucker(fine, nodes, far, b, keep);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point3;
+
+    #[test]
+    fn a_bent_branch_keeps_its_bend_and_long_stretches_are_split() {
+        // Up 0.3 m in 1 cm steps, then sideways 0.05 m.
+        let mut positions: Vec<_> = (0..=30)
+            .map(|i| Point3::new(0.0, 0.0, i as f64 * 0.01))
+            .collect();
+        positions.extend((1..=5).map(|i| Point3::new(i as f64 * 0.01, 0.0, 0.3)));
+        let n = positions.len();
+        let fine = Skeleton {
+            positions,
+            parents: (0..n).map(|i| i.checked_sub(1)).collect(),
+            radius: vec![0.01; n],
+        };
+        let (out, confidence) = simplify(&fine, &vec![1.0; n], 0.12);
+        assert_eq!(confidence.len(), out.len());
+        // The bend at 0.3 m, the tip and the 0.3 m stretch in three.
+        assert!(
+            out.positions
+                .iter()
+                .any(|p| (p - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-9)
+        );
+        assert!((out.positions[out.len() - 1] - Point3::new(0.05, 0.0, 0.3)).norm() < 1e-9);
+        assert_eq!(out.len(), 5, "{:?}", out.positions);
+        for (j, p) in out.parents.iter().enumerate().skip(1) {
+            let d = (out.positions[j] - out.positions[p.unwrap()]).norm();
+            assert!(d <= 0.12 + 1e-9 && d >= MIN_JOINT_SPACING - 1e-9, "{d}");
+        }
+    }
+}

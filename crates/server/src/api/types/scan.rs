@@ -1,0 +1,108 @@
+//! `POST /v1/trees/from-points`: a point cloud in (JSON, or a PLY body with
+//! the options in the query), a tree out.
+
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+
+use crate::api::types::TreeJson;
+use crate::api::types::schema::Vec3;
+
+/// A point cloud as JSON, with the options of the extraction. Positions in
+/// metres.
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FromPointsRequest {
+    /// The points (m).
+    #[schema(value_type = Vec<Vec3>, min_items = 1)]
+    pub points: Vec<Vec<f64>>,
+    /// Per-point normals (optional; as many as `points`).
+    #[serde(default)]
+    #[schema(value_type = Option<Vec<Vec3>>)]
+    pub normals: Option<Vec<Vec<f64>>>,
+    /// Per-point colours, 0-255 RGB (optional; as many as `points`).
+    #[serde(default)]
+    #[schema(value_type = Option<Vec<[u8; 3]>>)]
+    pub colors: Option<Vec<Vec<u8>>>,
+    #[serde(flatten)]
+    pub options: FromPointsOptions,
+}
+
+/// How to read the cloud (in a JSON body, beside `points`).
+#[derive(Debug, Clone, Default, Deserialize, ToSchema)]
+pub struct FromPointsOptions {
+    /// The trunk's base (m); default: the bottom of the lowest large
+    /// connected part of the cloud.
+    #[serde(default)]
+    #[schema(value_type = Option<Vec3>)]
+    pub root: Option<Vec<f64>>,
+    /// Which way is up (any length; default +z).
+    #[serde(default)]
+    #[schema(value_type = Option<Vec3>)]
+    pub up: Option<Vec<f64>>,
+    /// Largest distance between consecutive joints along a branch (m,
+    /// 0.03-1; default 0.18, the median branch length of the paper's trees).
+    #[serde(default)]
+    #[schema(minimum = 0.03, maximum = 1.0)]
+    pub spacing: Option<f64>,
+    /// Only points inside this box are used (m).
+    #[serde(default)]
+    pub crop: Option<CropJson>,
+}
+
+/// The options of a PLY body, as query parameters: vectors as
+/// comma-separated numbers (`root=0.1,0,0`), the crop box as six
+/// (`crop=min_x,min_y,min_z,max_x,max_y,max_z`).
+#[derive(Debug, Clone, Default, Deserialize, IntoParams)]
+#[into_params(parameter_in = Query)]
+#[serde(deny_unknown_fields)]
+pub struct FromPointsQuery {
+    /// The trunk's base (m), `x,y,z`.
+    pub root: Option<String>,
+    /// Which way is up, `x,y,z`.
+    pub up: Option<String>,
+    /// Largest distance between joints along a branch (m, 0.03-1).
+    #[param(minimum = 0.03, maximum = 1.0)]
+    pub spacing: Option<f64>,
+    /// Only points in this box (m): `min_x,min_y,min_z,max_x,max_y,max_z`.
+    pub crop: Option<String>,
+}
+
+/// An axis-aligned box (m).
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CropJson {
+    #[schema(value_type = Vec3)]
+    pub min: [f64; 3],
+    #[schema(value_type = Vec3)]
+    pub max: [f64; 3],
+}
+
+/// Points left out of the tree, by reason.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct DroppedJson {
+    /// Points with no neighbour near them.
+    pub outliers: usize,
+    /// Points of connected parts that are not joined to the tree (too
+    /// small or not shaped like a branch, or too far from it).
+    pub fragments: usize,
+    /// Points outside the crop box.
+    pub outside_crop: usize,
+}
+
+/// The tree found in the cloud, ready for every other endpoint.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct FromPointsResponse {
+    /// Node 0 is the trunk's base; a joint at every branch point and along
+    /// branches at most `spacing` apart; radii fitted to the points.
+    pub tree: TreeJson,
+    /// Per node, 0-1: how well the points supported its position and
+    /// radius (low: seen from one side, radius taken from the parent, few
+    /// points).
+    pub confidence: Vec<f64>,
+    /// Points that make up the tree.
+    pub points_used: usize,
+    pub points_dropped: DroppedJson,
+    /// What could not be seen or had to be guessed, and whether the tree is
+    /// larger than this server's other endpoints take.
+    pub warnings: Vec<String>,
+}

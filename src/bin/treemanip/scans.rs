@@ -1,0 +1,176 @@
+//! `treemanip trees scan` (a synthetic scan of a tree) and `treemanip trees
+//! from-points` (a tree from a point cloud file).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+use nalgebra::{Point3, Vector3};
+use treemanip::api::types::FromPointsResponse;
+use treemanip::scan::io::{self, ply};
+use treemanip::scan::skeleton::cloud_svg;
+use treemanip::scan::{CropBox, ExtractParams, ScanParams, Skeleton, extract, scan};
+
+#[derive(Args)]
+pub struct ScanArgs {
+    /// A tree URDF file (as `trees generate` writes them).
+    tree: PathBuf,
+    /// Where to write the cloud (binary PLY).
+    #[arg(long)]
+    out: PathBuf,
+    /// Viewpoints around the tree (1-16).
+    #[arg(long, default_value_t = 3)]
+    views: usize,
+    /// Horizontal range from the trunk to each viewpoint (m).
+    #[arg(long, default_value_t = 1.5)]
+    distance: f64,
+    /// Depth noise σ at that range (m); it grows with the square of range.
+    #[arg(long, default_value_t = 0.002)]
+    noise: f64,
+    /// Surface samples per viewpoint before occlusion.
+    #[arg(long, default_value_t = 40_000)]
+    samples: usize,
+    /// Leaves (5 cm discs) per twig.
+    #[arg(long, default_value_t = 0)]
+    leaves: usize,
+    /// Fruit (7 cm spheres) beside the branches.
+    #[arg(long, default_value_t = 0)]
+    fruit: usize,
+    /// Share of outliers among the points (0-0.5).
+    #[arg(long, default_value_t = 0.0)]
+    outliers: f64,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Also draw the cloud and the tree as SVG here.
+    #[arg(long)]
+    svg: Option<PathBuf>,
+}
+
+pub fn scan_cmd(args: ScanArgs) -> anyhow::Result<()> {
+    let tree = treemanip::tree::urdf::read_file(&args.tree)
+        .with_context(|| format!("cannot read {}", args.tree.display()))?;
+    let params = ScanParams {
+        viewpoints: args.views,
+        distance: args.distance,
+        noise: args.noise,
+        samples_per_view: args.samples,
+        leaves_per_twig: args.leaves,
+        fruit: args.fruit,
+        outliers: args.outliers,
+        seed: args.seed,
+    };
+    let scan = scan(&tree, &params).map_err(anyhow::Error::msg)?;
+    let mut file = std::io::BufWriter::new(
+        std::fs::File::create(&args.out)
+            .with_context(|| format!("cannot create {}", args.out.display()))?,
+    );
+    ply::write(&scan.cloud, &mut file)?;
+    println!(
+        "{} points from {} viewpoints written to {}",
+        scan.cloud.len(),
+        scan.viewpoints.len(),
+        args.out.display()
+    );
+    if let Some(svg) = args.svg {
+        let truth = Skeleton::of_tree(&tree);
+        let title = format!("{}: {} points", args.tree.display(), scan.cloud.len());
+        std::fs::write(&svg, cloud_svg(&scan.cloud.points, &truth, None, &title))?;
+    }
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct FromPointsArgs {
+    /// A point cloud: .ply, .pcd, .las, .laz or .xyz.
+    file: PathBuf,
+    /// Where to write the tree (JSON, as `POST /v1/trees/from-points`
+    /// answers); standard output if absent.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Also draw the cloud and the tree as SVG here.
+    #[arg(long)]
+    svg: Option<PathBuf>,
+    /// Largest distance between joints along a branch (m).
+    #[arg(long, default_value_t = treemanip::scan::extract::DEFAULT_SPACING)]
+    spacing: f64,
+    /// The trunk's base, `x,y,z` (m).
+    #[arg(long, value_parser = parse_vec3)]
+    root: Option<Vector3<f64>>,
+    /// Which way is up, `x,y,z`.
+    #[arg(long, value_parser = parse_vec3, default_value = "0,0,1")]
+    up: Vector3<f64>,
+    /// Only points in this box: `min_x,min_y,min_z,max_x,max_y,max_z` (m).
+    #[arg(long, value_parser = parse_crop)]
+    crop: Option<CropBox>,
+    /// Largest cloud read (points).
+    #[arg(long, default_value_t = treemanip::scan::extract::DEFAULT_MAX_POINTS)]
+    max_points: usize,
+}
+
+fn numbers(s: &str, n: usize) -> Result<Vec<f64>, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>().map_err(|e| format!("`{t}`: {e}")))
+        .collect::<Result<_, _>>()?;
+    if v.len() != n || !v.iter().all(|c| c.is_finite()) {
+        return Err(format!("expected {n} comma-separated finite numbers"));
+    }
+    Ok(v)
+}
+
+fn parse_vec3(s: &str) -> Result<Vector3<f64>, String> {
+    numbers(s, 3).map(|v| Vector3::new(v[0], v[1], v[2]))
+}
+
+fn parse_crop(s: &str) -> Result<CropBox, String> {
+    numbers(s, 6).map(|v| CropBox {
+        min: Point3::new(v[0], v[1], v[2]),
+        max: Point3::new(v[3], v[4], v[5]),
+    })
+}
+
+pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
+    let start = std::time::Instant::now();
+    let cloud = io::read_path(&args.file, args.max_points)?;
+    let read = start.elapsed();
+    let params = ExtractParams {
+        spacing: args.spacing,
+        root: args.root.map(Point3::from),
+        up: args.up,
+        crop: args.crop,
+        max_points: args.max_points,
+        ..ExtractParams::default()
+    };
+    let extraction = extract(&cloud, &params)?;
+    eprintln!(
+        "{} points read in {:.2} s; a tree of {} nodes from {} of them in {:.2} s",
+        cloud.len(),
+        read.as_secs_f64(),
+        extraction.skeleton.len(),
+        extraction.points_used,
+        (start.elapsed() - read).as_secs_f64()
+    );
+    for w in &extraction.warnings {
+        eprintln!("warning: {w}");
+    }
+    let answer = FromPointsResponse::from_extraction(&extraction, treemanip::tree::MAX_NODES);
+    let json = serde_json::to_string_pretty(&answer)?;
+    match &args.out {
+        Some(path) => std::fs::write(path, json)
+            .with_context(|| format!("cannot write {}", path.display()))?,
+        None => println!("{json}"),
+    }
+    if let Some(svg) = args.svg {
+        let title = format!(
+            "{}: {} points, {} nodes",
+            args.file.display(),
+            cloud.len(),
+            extraction.skeleton.len()
+        );
+        std::fs::write(
+            &svg,
+            cloud_svg(&cloud.points, &extraction.skeleton, None, &title),
+        )?;
+    }
+    Ok(())
+}
