@@ -7,5 +7,6 @@ pub mod learned;
 pub mod plan;
 pub mod plots;
 pub mod ranks;
+pub mod scans;
 pub mod stiffness;
 pub mod tasks;

@@ -28,7 +28,7 @@ use crate::geometry::shape::Shape;
 use crate::infer::models::ServedModel;
 use crate::planner::objective::{DEFAULT_CLEAR_MARGIN, SATISFIED};
 use crate::planner::predict::PhysicsPredictor;
-use crate::planner::search::{SearchOptions, search_pushes};
+use crate::planner::search::{Scored, SearchOptions, search_pushes};
 use crate::planner::seeds::geometric_seeds;
 use crate::planner::{Limits, Objective, Planner, Query, Stance, Strategy};
 use crate::sim::loads::PushLoads;
@@ -72,6 +72,24 @@ fn perpendicular(axis: &Vector3<f64>, rng: &mut ChaCha8Rng) -> Vector3<f64> {
     UnitQuaternion::from_axis_angle(&Unit::new_normalize(*axis), angle) * u
 }
 
+/// A `clear` task: a fruit-sized sphere across a random branch (centre
+/// within 3 cm of its axis).
+pub fn clear_task(tree: &Tree, rng: &mut ChaCha8Rng) -> Option<Objective> {
+    let node = rng.random_range(1..tree.len());
+    let parent = tree.parent(node)?;
+    let (a, b) = (tree.position(parent), tree.position(node));
+    let on_axis = a + (b - a) * rng.random_range(0.3..0.9);
+    let axis = (b - a).normalize();
+    let centre = on_axis + perpendicular(&axis, rng) * rng.random_range(0.0..0.03);
+    Some(Objective::Clear {
+        regions: vec![Shape::Sphere {
+            centre,
+            radius: FRUIT_RADIUS,
+        }],
+        margin: DEFAULT_CLEAR_MARGIN,
+    })
+}
+
 /// The task of `kind` on an episode's tree, or `None` when the episode
 /// offers none (no node moved enough for `reach`).
 pub fn make_task(
@@ -82,21 +100,7 @@ pub fn make_task(
 ) -> Option<Objective> {
     let n = tree.len();
     match kind {
-        TaskKind::Clear => {
-            let node = rng.random_range(1..n);
-            let parent = tree.parent(node)?;
-            let (a, b) = (tree.position(parent), tree.position(node));
-            let on_axis = a + (b - a) * rng.random_range(0.3..0.9);
-            let axis = (b - a).normalize();
-            let centre = on_axis + perpendicular(&axis, rng) * rng.random_range(0.0..0.03);
-            Some(Objective::Clear {
-                regions: vec![Shape::Sphere {
-                    centre,
-                    radius: FRUIT_RADIUS,
-                }],
-                margin: DEFAULT_CLEAR_MARGIN,
-            })
-        }
+        TaskKind::Clear => clear_task(tree, rng),
         TaskKind::Reach => {
             let moved: Vec<usize> = (1..n)
                 .filter(|&j| (episode.final_positions[j] - tree.position(j)).norm() >= 0.03)
@@ -154,6 +158,17 @@ pub fn oracle(
     limits: Option<&Limits>,
     seed: u64,
 ) -> Option<f64> {
+    best_push(tree, objective, limits, seed).map(|s| s.predicted_error)
+}
+
+/// The oracle's push: the best within `limits` the simulator finds from
+/// the geometric seeds (12 nodes, 256 predictions), arm ignored.
+pub fn best_push(
+    tree: &Tree,
+    objective: &Objective,
+    limits: Option<&Limits>,
+    seed: u64,
+) -> Option<Scored> {
     let seeds = geometric_seeds(tree, objective, 12);
     let options = SearchOptions {
         max_evaluations: 256,
@@ -173,10 +188,7 @@ pub fn oracle(
         &options,
     )
     .ok()?;
-    scored
-        .iter()
-        .find(|s| s.within_limits)
-        .map(|s| s.predicted_error)
+    scored.into_iter().find(|s| s.within_limits)
 }
 
 /// One planned task.

@@ -3,6 +3,10 @@ use treemanip_core::scan::*;
 use treemanip_core::tree::{ScaParams, generate};
 
 fn main() {
+    if std::env::var("LEAFDIAG").is_ok() {
+        leafdiag();
+        return;
+    }
     if std::env::var("LEN").is_ok() {
         lengths();
         return;
@@ -158,4 +162,38 @@ fn diag(truth: &Skeleton, found: &Skeleton) {
             );
         }
     }
+}
+#[allow(dead_code)]
+fn leafdiag() {
+    use treemanip_core::scan::leaves::sheets;
+    use treemanip_core::scan::neighbours::PointIndex;
+    let tree = generate(20, 3, &ScaParams::default()).unwrap();
+    let s = scan(
+        &tree,
+        &ScanParams {
+            viewpoints: 1,
+            noise: 0.003,
+            leaves_per_twig: 8,
+            seed: 3,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    let v = treemanip_core::scan::voxel::voxelize(&s.cloud.points, 0.004);
+    let idx = PointIndex::new(&v.centres);
+    let sh = sheets(&v.centres, &idx);
+    // label voxels by nearest raw point's origin
+    let ridx = PointIndex::new(&s.cloud.points);
+    let (mut ll, mut lb, mut bl, mut bb) = (0, 0, 0, 0);
+    for (i, c) in v.centres.iter().enumerate() {
+        let (j, _) = ridx.nearest(c);
+        let leaf = s.origins[j] == Origin::Leaf;
+        match (leaf, sh[i]) {
+            (true, true) => ll += 1,
+            (true, false) => lb += 1,
+            (false, true) => bl += 1,
+            (false, false) => bb += 1,
+        }
+    }
+    println!("leaf voxels: as sheet {ll}, missed {lb}; bark voxels: as sheet {bl}, kept {bb}");
 }

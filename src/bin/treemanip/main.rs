@@ -17,6 +17,8 @@ mod progress;
 mod ranks;
 mod robot;
 mod scans;
+#[cfg(feature = "train")]
+mod scans_eval;
 mod sim;
 #[cfg(feature = "train")]
 mod tasks;
@@ -105,6 +107,11 @@ enum EvalCommand {
     /// `shape`) on test trees under load limits, per strategy, with the
     /// arm-free oracle; loads read from predictions against the simulator.
     Tasks(tasks::EvalTasksArgs),
+    /// Trees from synthetic scans of test-split trees (1 and 3 viewpoints,
+    /// 1-5 mm noise, with and without leaves) scored against the true
+    /// trees, and `clear` tasks planned on the extracted tree carried out
+    /// on the true one.
+    Scans(scans_eval::EvalScansArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -129,6 +136,8 @@ fn main() -> std::process::ExitCode {
         Command::Eval(EvalCommand::Stiffness(args)) => identify_eval::eval_stiffness(args),
         #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
+        #[cfg(feature = "train")]
+        Command::Eval(EvalCommand::Scans(args)) => scans_eval::eval_scans(args),
         #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Tasks(args)) => tasks::eval_tasks(args),
         #[cfg(feature = "train")]

@@ -40,8 +40,8 @@ pub fn fine_skeleton(
 ) -> FineSkeleton {
     let all = pieces(points, weights, graph, dist, pred, bin);
     let prune_length = (3.0 * bin).max(0.35 * spacing);
-    let (pieces, pruned) = prune(all, prune_length);
     let mut notes = Vec::new();
+    let (pieces, pruned) = prune(all, prune_length);
     if pruned > 0 {
         notes.push(format!(
             "{pruned} stubs shorter than {:.1} cm were pruned (leaves, fruit or noise beside a branch)",

@@ -12,8 +12,7 @@ use super::error::{ApiError, ErrorCode};
 use super::json::{media_type, parse_json, read_body};
 use crate::api::types::error::PostErrors;
 use crate::api::types::{
-    CropJson, DroppedJson, FromPointsOptions, FromPointsQuery, FromPointsRequest,
-    FromPointsResponse, TreeJson,
+    CropJson, DroppedJson, FromPointsQuery, FromPointsRequest, FromPointsResponse, TreeJson,
 };
 use treemanip_core::scan::io::FormatError;
 use treemanip_core::scan::{CloudError, CropBox, ExtractParams, Extraction, PointCloud, extract};
@@ -72,10 +71,10 @@ pub async fn from_points(
                 let request: FromPointsRequest = parse_json(&bytes)?;
                 request.into_cloud()?
             } else {
-                let options = FromPointsQuery::parse(&query)?.into_options()?;
+                let params = FromPointsQuery::parse(&query)?.params()?;
                 let cloud = treemanip_core::scan::io::ply::read(&bytes[..], max_points)
                     .map_err(format_error)?;
-                (cloud, options.params()?)
+                (cloud, params)
             };
             let params = ExtractParams {
                 max_points,
@@ -130,15 +129,27 @@ impl FromPointsRequest {
             .map(|c| {
                 c.iter()
                     .map(|v| {
-                        <[u8; 3]>::try_from(v.as_slice()).map_err(|_| {
-                            ApiError::invalid_argument("each colour must have 3 numbers (0-255)")
-                                .with_details(json!({ "field": "colors" }))
-                        })
+                        let ok = v.len() == 3
+                            && v.iter()
+                                .all(|c| (0.0..=255.0).contains(c) && c.fract() == 0.0);
+                        if ok {
+                            Ok([v[0] as u8, v[1] as u8, v[2] as u8])
+                        } else {
+                            Err(ApiError::invalid_argument(
+                                "each colour must be 3 integers from 0 to 255",
+                            )
+                            .with_details(json!({ "field": "colors" })))
+                        }
                     })
                     .collect::<Result<Vec<_>, _>>()
             })
             .transpose()?;
-        let params = self.options.params()?;
+        let params = params(
+            self.root.as_deref(),
+            self.up.as_deref(),
+            self.spacing,
+            self.crop,
+        )?;
         Ok((
             PointCloud {
                 points,
@@ -150,29 +161,29 @@ impl FromPointsRequest {
     }
 }
 
-impl FromPointsOptions {
-    pub fn params(&self) -> Result<ExtractParams, ApiError> {
-        let defaults = ExtractParams::default();
-        Ok(ExtractParams {
-            spacing: self.spacing.unwrap_or(defaults.spacing),
-            root: self
-                .root
-                .as_deref()
-                .map(|v| vec3("root", v).map(Point3::from))
-                .transpose()?,
-            up: self
-                .up
-                .as_deref()
-                .map(|v| vec3("up", v).map(Vector3::from))
-                .transpose()?
-                .unwrap_or(defaults.up),
-            crop: self.crop.map(|c| CropBox {
-                min: Point3::from(c.min),
-                max: Point3::from(c.max),
-            }),
-            ..defaults
-        })
-    }
+/// The extraction's options from the wire's (JSON body or query).
+fn params(
+    root: Option<&[f64]>,
+    up: Option<&[f64]>,
+    spacing: Option<f64>,
+    crop: Option<CropJson>,
+) -> Result<ExtractParams, ApiError> {
+    let defaults = ExtractParams::default();
+    Ok(ExtractParams {
+        spacing: spacing.unwrap_or(defaults.spacing),
+        root: root
+            .map(|v| vec3("root", v).map(Point3::from))
+            .transpose()?,
+        up: up
+            .map(|v| vec3("up", v).map(Vector3::from))
+            .transpose()?
+            .unwrap_or(defaults.up),
+        crop: crop.map(|c| CropBox {
+            min: Point3::from(c.min),
+            max: Point3::from(c.max),
+        }),
+        ..defaults
+    })
 }
 
 impl FromPointsQuery {
@@ -183,7 +194,7 @@ impl FromPointsQuery {
         })
     }
 
-    pub fn into_options(self) -> Result<FromPointsOptions, ApiError> {
+    pub fn params(self) -> Result<ExtractParams, ApiError> {
         let numbers = |field: &'static str, s: &str, n: usize| -> Result<Vec<f64>, ApiError> {
             let v: Vec<f64> = s
                 .split(',')
@@ -199,29 +210,27 @@ impl FromPointsQuery {
                 })?;
             Ok(v)
         };
-        Ok(FromPointsOptions {
-            root: self
-                .root
-                .as_deref()
-                .map(|s| numbers("root", s, 3))
-                .transpose()?,
-            up: self
-                .up
-                .as_deref()
-                .map(|s| numbers("up", s, 3))
-                .transpose()?,
-            spacing: self.spacing,
-            crop: self
-                .crop
-                .as_deref()
-                .map(|s| {
-                    numbers("crop", s, 6).map(|v| CropJson {
-                        min: [v[0], v[1], v[2]],
-                        max: [v[3], v[4], v[5]],
-                    })
+        let root = self
+            .root
+            .as_deref()
+            .map(|s| numbers("root", s, 3))
+            .transpose()?;
+        let up = self
+            .up
+            .as_deref()
+            .map(|s| numbers("up", s, 3))
+            .transpose()?;
+        let crop = self
+            .crop
+            .as_deref()
+            .map(|s| {
+                numbers("crop", s, 6).map(|v| CropJson {
+                    min: [v[0], v[1], v[2]],
+                    max: [v[3], v[4], v[5]],
                 })
-                .transpose()?,
-        })
+            })
+            .transpose()?;
+        params(root.as_deref(), up.as_deref(), self.spacing, crop)
     }
 }
 

@@ -12,5 +12,6 @@ mod server_adversarial;
 mod server_basics;
 mod server_identify;
 mod server_robots;
+mod server_scans;
 mod server_tasks;
 mod viewer;

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::api::types::TreeJson;
-use crate::api::types::schema::Vec3;
+use crate::api::types::schema::{Rgb, Vec3};
 
 /// A point cloud as JSON, with the options of the extraction. Positions in
 /// metres.
@@ -21,15 +21,8 @@ pub struct FromPointsRequest {
     pub normals: Option<Vec<Vec<f64>>>,
     /// Per-point colours, 0-255 RGB (optional; as many as `points`).
     #[serde(default)]
-    #[schema(value_type = Option<Vec<[u8; 3]>>)]
-    pub colors: Option<Vec<Vec<u8>>>,
-    #[serde(flatten)]
-    pub options: FromPointsOptions,
-}
-
-/// How to read the cloud (in a JSON body, beside `points`).
-#[derive(Debug, Clone, Default, Deserialize, ToSchema)]
-pub struct FromPointsOptions {
+    #[schema(value_type = Option<Vec<Rgb>>)]
+    pub colors: Option<Vec<Vec<f64>>>,
     /// The trunk's base (m); default: the bottom of the lowest large
     /// connected part of the cloud.
     #[serde(default)]

@@ -33,6 +33,26 @@ impl PartialSchema for Vec3 {
 }
 impl ToSchema for Vec3 {}
 
+/// A colour `[r, g, b]`, each 0-255.
+pub struct Rgb;
+
+impl PartialSchema for Rgb {
+    fn schema() -> RefOr<Schema> {
+        ArrayBuilder::new()
+            .items(
+                ObjectBuilder::new()
+                    .schema_type(Type::Integer)
+                    .minimum(Some(0))
+                    .maximum(Some(255)),
+            )
+            .min_items(Some(3))
+            .max_items(Some(3))
+            .description(Some("[r, g, b], each 0-255"))
+            .into()
+    }
+}
+impl ToSchema for Rgb {}
+
 /// One value per joint of an arm.
 pub struct Joints;
 

@@ -1,0 +1,202 @@
+//! `POST /v1/trees/from-points` over HTTP: a synthetic scan of a tree sent
+//! as JSON and as binary PLY comes back as a tree close to the true one
+//! that `/v1/simulate` takes; bad clouds are named with 4xx, never a panic.
+
+use serde_json::{Value, json};
+use treemanip_core::scan::io::ply;
+use treemanip_core::scan::{PointCloud, ScanParams, Skeleton, scan, score};
+use treemanip_core::tree::{ScaParams, Tree, generate};
+
+use crate::common::server::Server;
+
+fn scanned() -> (Tree, PointCloud) {
+    let tree = generate(16, 5, &ScaParams::default()).unwrap();
+    let params = ScanParams {
+        samples_per_view: 20_000,
+        seed: 5,
+        ..ScanParams::default()
+    };
+    (tree.clone(), scan(&tree, &params).unwrap().cloud)
+}
+
+fn ply_bytes(cloud: &PointCloud) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    ply::write(cloud, &mut bytes).unwrap();
+    bytes
+}
+
+fn skeleton_of(answer: &Value) -> Skeleton {
+    let t = &answer["tree"];
+    let positions = t["positions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            let p: Vec<f64> = serde_json::from_value(p.clone()).unwrap();
+            nalgebra::Point3::new(p[0], p[1], p[2])
+        })
+        .collect();
+    let parents = serde_json::from_value(t["parents"].clone()).unwrap();
+    let radius: Vec<Option<f64>> = serde_json::from_value(t["radius"].clone()).unwrap();
+    let first = radius.iter().flatten().copied().next().unwrap_or(0.01);
+    Skeleton {
+        positions,
+        parents,
+        radius: radius.iter().map(|r| r.unwrap_or(first)).collect(),
+    }
+}
+
+#[test]
+fn a_scanned_tree_comes_back_from_json_and_from_ply_and_simulates() {
+    let server = Server::start(&[]);
+    let (tree, cloud) = scanned();
+    let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let (status, from_json) = server.json(
+        "POST",
+        "/v1/trees/from-points",
+        &json!({ "points": points }),
+    );
+    assert_eq!(status, 200, "{from_json}");
+    let (status, from_ply) = server.send(
+        "POST",
+        "/v1/trees/from-points",
+        "application/x-ply",
+        &ply_bytes(&cloud),
+    );
+    assert_eq!(status, 200, "{from_ply}");
+    // Binary PLY of doubles carries the same numbers as the JSON.
+    assert_eq!(from_json, from_ply);
+    let found = skeleton_of(&from_json);
+    let s = score(&Skeleton::of_tree(&tree), &found);
+    assert!(s.recall[1] > 0.85 && s.precision[1] > 0.85, "{s:?}");
+    assert_eq!(
+        from_json["confidence"].as_array().unwrap().len(),
+        found.len()
+    );
+    let used = from_json["points_used"].as_u64().unwrap() as usize;
+    assert!(used > cloud.len() * 9 / 10 && used <= cloud.len());
+
+    // The answer is a tree the other endpoints take as it is.
+    let (status, sim) = server.json(
+        "POST",
+        "/v1/simulate",
+        &json!({
+            "tree": from_json["tree"],
+            "contact_node": found.len() - 1,
+            "push": [0.03, 0.0, 0.0],
+        }),
+    );
+    assert_eq!(status, 200, "{sim}");
+
+    // Options in the query of a PLY body: a crop that keeps the bottom
+    // 30 cm keeps a shorter tree and counts what it dropped.
+    let (status, cropped) = server.send(
+        "POST",
+        "/v1/trees/from-points?crop=-2,-2,-1,2,2,0.3&spacing=0.1",
+        "application/octet-stream",
+        &ply_bytes(&cloud),
+    );
+    assert_eq!(status, 200, "{cropped}");
+    assert!(cropped["points_dropped"]["outside_crop"].as_u64().unwrap() > 1000);
+    let top = skeleton_of(&cropped)
+        .positions
+        .iter()
+        .map(|p| p.z)
+        .fold(f64::MIN, f64::max);
+    assert!(top <= 0.31, "{top}");
+}
+
+#[test]
+fn bad_clouds_are_named() {
+    let server = Server::start(&["--max-cloud-points", "40000"]);
+    let post = |body: Value| server.json("POST", "/v1/trees/from-points", &body);
+    let check = |(status, body): (u16, Value), want: u16, words: &str| {
+        assert_eq!(status, want, "{body}");
+        let message = body["error"]["message"].as_str().unwrap().to_owned();
+        assert!(message.contains(words), "{message}");
+    };
+    check(post(json!({ "points": [] })), 422, "empty");
+    let plane: Vec<[f64; 3]> = (0..400)
+        .map(|i| [(i % 20) as f64 * 0.01, (i / 20) as f64 * 0.01, 0.0])
+        .collect();
+    check(post(json!({ "points": plane })), 422, "plane");
+    let line: Vec<[f64; 3]> = (0..400).map(|i| [0.0, 0.0, i as f64 * 0.001]).collect();
+    check(post(json!({ "points": line })), 422, "line");
+    check(
+        post(json!({ "points": [[0.0, 0.0, 0.0], [1.0, 2.0]] })),
+        422,
+        "3 numbers",
+    );
+    // JSON has no NaN: the body does not parse.
+    let (status, _) = server.send(
+        "POST",
+        "/v1/trees/from-points",
+        "application/json",
+        br#"{"points": [[NaN, 0, 0]]}"#,
+    );
+    assert_eq!(status, 400);
+    let (_, cloud) = scanned();
+    let mut doubled = cloud.clone();
+    doubled.points.extend(cloud.points.clone());
+    assert!(doubled.len() > 40_000);
+    check(
+        server.send(
+            "POST",
+            "/v1/trees/from-points",
+            "application/x-ply",
+            &ply_bytes(&doubled),
+        ),
+        413,
+        "limit of 40000",
+    );
+    let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    check(
+        post(json!({ "points": points, "root": [5.0, 5.0, 0.0] })),
+        422,
+        "from the nearest point",
+    );
+    // Two trees side by side: half the points of the scan, and a copy of
+    // them 1.5 m away.
+    let half: Vec<_> = cloud.points.iter().step_by(2).copied().collect();
+    let two: Vec<[f64; 3]> = half
+        .iter()
+        .chain(
+            half.iter()
+                .map(|p| p + nalgebra::Vector3::new(1.5, 0.0, 0.0))
+                .collect::<Vec<_>>()
+                .iter(),
+        )
+        .map(|p| [p.x, p.y, p.z])
+        .collect();
+    check(post(json!({ "points": two })), 422, "several trees");
+    // With a root the user picks one of them.
+    let root = [half[0].x, half[0].y, half[0].z];
+    let (status, body) = post(json!({ "points": two, "root": root }));
+    assert_eq!(status, 200, "{body}");
+    assert!(body["points_dropped"]["fragments"].as_u64().unwrap() > 5000);
+    check(
+        server.send(
+            "POST",
+            "/v1/trees/from-points",
+            "application/x-ply",
+            b"ply\nformat ascii 1.0\nend_header\n",
+        ),
+        422,
+        "PLY",
+    );
+    check(
+        server.send("POST", "/v1/trees/from-points", "text/plain", b"1 2 3"),
+        415,
+        "PLY",
+    );
+    check(
+        server.send(
+            "POST",
+            "/v1/trees/from-points?root=1,2",
+            "application/x-ply",
+            &ply_bytes(&cloud),
+        ),
+        422,
+        "`root` must be 3",
+    );
+}

@@ -1,0 +1,363 @@
+//! Trees from scans, evaluated (`treemanip eval scans`): test-split trees
+//! scanned synthetically ([`crate::scan::scanner`]) under each condition
+//! (viewpoints, depth noise, leaves), the tree extracted from the cloud and
+//! scored against the true one ([`crate::scan::score`]), and end to end: a
+//! `clear` task planned on the extracted tree (the arm-free oracle search
+//! with the simulator and load limits), the push carried out on the true
+//! tree in the simulator, against the same planning on the true tree.
+//!
+//! The extraction's parameters were chosen on other trees (seeds 1-8 of
+//! the generator, never a test-split seed), so every tree here is held out.
+
+use std::time::Instant;
+
+use nalgebra::Point3;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::plan::percentile;
+use super::tasks::{best_push, clear_task, execute};
+use crate::dataset::{CollectConfig, Split};
+use crate::planner::objective::{Limits, SATISFIED};
+use crate::scan::{ExtractParams, Extraction, ScanParams, Skeleton, extract, scan, score};
+use crate::seed::derive_seed;
+use crate::sim::Push;
+use crate::tree::collection::tree_set;
+use crate::tree::{ScaParams, Tree, Wood};
+
+/// One scanning condition.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Condition {
+    pub views: usize,
+    /// Depth noise σ at the scanning range (m).
+    pub noise: f64,
+    /// Leaves per twig.
+    pub leaves: usize,
+}
+
+impl Condition {
+    pub fn label(&self) -> String {
+        format!(
+            "{} view{}, {:.0} mm{}",
+            self.views,
+            if self.views == 1 { "" } else { "s" },
+            self.noise * 1e3,
+            if self.leaves > 0 {
+                format!(", {} leaves/twig", self.leaves)
+            } else {
+                String::new()
+            }
+        )
+    }
+}
+
+/// Leaves per twig in the leafy conditions: a 5 cm leaf every 2-3 cm of a
+/// 15-20 cm twig's outer two thirds.
+pub const LEAVES_PER_TWIG: usize = 8;
+
+/// The evaluation's grid: 1 and 3 viewpoints, 1-5 mm noise, with and
+/// without leaves.
+pub fn default_conditions() -> Vec<Condition> {
+    let mut out = Vec::new();
+    for leaves in [0, LEAVES_PER_TWIG] {
+        for views in [1, 3] {
+            for noise in [0.001, 0.002, 0.003, 0.005] {
+                out.push(Condition {
+                    views,
+                    noise,
+                    leaves,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The test split's trees of each size (as `dataset collect` draws them).
+pub fn test_trees(sizes: &[usize], per_size: usize) -> anyhow::Result<Vec<Tree>> {
+    let config = CollectConfig::default();
+    let base = derive_seed(config.seed, &[Split::Test.seed_part()]);
+    let mut out = Vec::new();
+    for &n in sizes {
+        let set = tree_set(n, per_size, base, &ScaParams::default(), true, |_, _| {})?;
+        out.extend(set.into_iter().map(|(_, t)| t));
+    }
+    Ok(out)
+}
+
+/// One tree under one condition.
+#[derive(Debug, Clone, Serialize)]
+pub struct TreeRow {
+    pub n: usize,
+    pub points: usize,
+    /// Extraction time (s).
+    pub seconds: f64,
+    pub nodes: usize,
+    pub recall: [f64; 2],
+    pub precision: [f64; 2],
+    pub radius_error_mm: [f64; 3],
+    pub branch_points_matched: f64,
+    pub topology: f64,
+    /// The extraction's error, if it refused the cloud.
+    pub error: Option<String>,
+}
+
+/// A condition's averages over its trees.
+#[derive(Debug, Clone, Serialize)]
+pub struct ConditionRow {
+    pub condition: Condition,
+    pub trees: usize,
+    pub failed: usize,
+    pub points_mean: f64,
+    pub recall: [f64; 2],
+    pub precision: [f64; 2],
+    /// Median over trees of each tree's median radius error, by class.
+    pub radius_error_mm: [f64; 3],
+    pub branch_points_matched: f64,
+    pub topology: f64,
+    /// Extraction seconds per 100,000 points, median and 95th percentile.
+    pub per_100k_p50: f64,
+    pub per_100k_p95: f64,
+    /// Extracted nodes per true node.
+    pub nodes_ratio: f64,
+}
+
+/// The scan of tree `index` under `condition`.
+pub fn scan_params(condition: &Condition, seed: u64, index: usize) -> ScanParams {
+    ScanParams {
+        viewpoints: condition.views,
+        noise: condition.noise,
+        leaves_per_twig: condition.leaves,
+        seed: derive_seed(seed, &[index as u64, condition.views as u64]),
+        ..ScanParams::default()
+    }
+}
+
+/// Scans and extracts every tree under `condition`; the extractions come
+/// back beside the rows (for the end-to-end tasks).
+pub fn evaluate_condition(
+    trees: &[Tree],
+    condition: &Condition,
+    seed: u64,
+) -> (ConditionRow, Vec<Option<Extraction>>) {
+    // One tree at a time (each extraction uses both cores), so the times
+    // are the extraction's own.
+    let mut rows = Vec::new();
+    let mut extractions = Vec::new();
+    for (i, tree) in trees.iter().enumerate() {
+        let cloud = match scan(tree, &scan_params(condition, seed, i)) {
+            Ok(s) => s.cloud,
+            Err(e) => panic!("the evaluation's scan parameters are valid: {e}"),
+        };
+        let start = Instant::now();
+        let result = extract(&cloud, &ExtractParams::default());
+        let seconds = start.elapsed().as_secs_f64();
+        let truth = Skeleton::of_tree(tree);
+        let row = match &result {
+            Ok(e) => {
+                let s = score(&truth, &e.skeleton);
+                TreeRow {
+                    n: tree.len(),
+                    points: cloud.len(),
+                    seconds,
+                    nodes: e.skeleton.len(),
+                    recall: s.recall,
+                    precision: s.precision,
+                    radius_error_mm: s.radius_error_mm,
+                    branch_points_matched: s.branch_points_matched,
+                    topology: s.topology,
+                    error: None,
+                }
+            }
+            Err(err) => TreeRow {
+                n: tree.len(),
+                points: cloud.len(),
+                seconds,
+                nodes: 0,
+                recall: [0.0; 2],
+                precision: [0.0; 2],
+                radius_error_mm: [f64::NAN; 3],
+                branch_points_matched: 0.0,
+                topology: 0.0,
+                error: Some(err.to_string()),
+            },
+        };
+        rows.push(row);
+        extractions.push(result.ok());
+    }
+    (summarise(condition, &rows), extractions)
+}
+
+fn mean(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    if n == 0 { f64::NAN } else { s / n as f64 }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.retain(|x| x.is_finite());
+    v.sort_by(f64::total_cmp);
+    percentile(&v, 0.5)
+}
+
+pub fn summarise(condition: &Condition, rows: &[TreeRow]) -> ConditionRow {
+    let mut per_100k: Vec<f64> = rows
+        .iter()
+        .map(|r| r.seconds / r.points.max(1) as f64 * 1e5)
+        .collect();
+    per_100k.sort_by(f64::total_cmp);
+    ConditionRow {
+        condition: *condition,
+        trees: rows.len(),
+        failed: rows.iter().filter(|r| r.error.is_some()).count(),
+        points_mean: mean(rows.iter().map(|r| r.points as f64)),
+        recall: [0, 1].map(|k| mean(rows.iter().map(|r| r.recall[k]))),
+        precision: [0, 1].map(|k| mean(rows.iter().map(|r| r.precision[k]))),
+        radius_error_mm: [0, 1, 2]
+            .map(|k| median(rows.iter().map(|r| r.radius_error_mm[k]).collect())),
+        branch_points_matched: mean(rows.iter().map(|r| r.branch_points_matched)),
+        topology: mean(rows.iter().map(|r| r.topology)),
+        per_100k_p50: percentile(&per_100k, 0.5),
+        per_100k_p95: percentile(&per_100k, 0.95),
+        nodes_ratio: mean(rows.iter().map(|r| r.nodes as f64 / r.n as f64)),
+    }
+}
+
+/// End to end over one condition's extractions.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct EndToEnd {
+    pub tasks: usize,
+    /// Tasks whose push planned on the true tree succeeds on it.
+    pub true_solved: usize,
+    /// Of those, how many the push planned on the extracted tree solves on
+    /// the true tree.
+    pub extracted_solved: usize,
+    /// Tasks the extracted tree's push solves (whether or not the true
+    /// tree's does).
+    pub extracted_solved_any: usize,
+    /// Extracted-tree pushes over the load limits on the true tree.
+    pub over_limit: usize,
+    /// Tasks without an extracted tree the simulator takes (refused cloud,
+    /// too many nodes).
+    pub no_tree: usize,
+}
+
+/// How far (m) the extracted push's node may be from the true node it is
+/// carried out at.
+pub const CONTACT_MATCH: f64 = 0.05;
+
+/// `tasks_per_tree` `clear` tasks per tree: planned on the extracted tree
+/// and on the true one (arm ignored, simulator as the predictor, under
+/// `limits`), each push carried out on the true tree at the true node
+/// nearest to the planned contact.
+pub fn end_to_end(
+    trees: &[Tree],
+    extractions: &[Option<Extraction>],
+    tasks_per_tree: usize,
+    limits: &Limits,
+    seed: u64,
+) -> EndToEnd {
+    let results: Vec<EndToEnd> = trees
+        .par_iter()
+        .zip(extractions)
+        .enumerate()
+        .map(|(i, (tree, extraction))| {
+            let mut out = EndToEnd::default();
+            let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, &[i as u64, 77]));
+            let found = extraction
+                .as_ref()
+                .and_then(|e| e.skeleton.to_tree(&Wood::default()).ok());
+            for t in 0..tasks_per_tree {
+                let Some(objective) = clear_task(tree, &mut rng) else {
+                    continue;
+                };
+                out.tasks += 1;
+                let task_seed = derive_seed(seed, &[i as u64, t as u64]);
+                let solves = |push: &Push| {
+                    execute(tree, &objective, push).map(|(residual, _, loads)| {
+                        (
+                            residual <= SATISFIED && limits.allow(&loads),
+                            !limits.allow(&loads),
+                        )
+                    })
+                };
+                let true_ok = best_push(tree, &objective, Some(limits), task_seed)
+                    .and_then(|s| solves(&s.push))
+                    .is_some_and(|(ok, _)| ok);
+                let Some(found) = &found else {
+                    out.no_tree += 1;
+                    out.true_solved += usize::from(true_ok);
+                    continue;
+                };
+                let carried = best_push(found, &objective, Some(limits), task_seed)
+                    .and_then(|s| {
+                        let at = found.position(s.push.node);
+                        nearest_node(tree, &at).map(|node| Push {
+                            node,
+                            vector: s.push.vector,
+                        })
+                    })
+                    .and_then(|p| solves(&p));
+                let (ok, over) = carried.unwrap_or((false, false));
+                out.true_solved += usize::from(true_ok);
+                out.extracted_solved += usize::from(true_ok && ok);
+                out.extracted_solved_any += usize::from(ok);
+                out.over_limit += usize::from(over);
+            }
+            out
+        })
+        .collect();
+    results
+        .into_iter()
+        .fold(EndToEnd::default(), |a, b| EndToEnd {
+            tasks: a.tasks + b.tasks,
+            true_solved: a.true_solved + b.true_solved,
+            extracted_solved: a.extracted_solved + b.extracted_solved,
+            extracted_solved_any: a.extracted_solved_any + b.extracted_solved_any,
+            over_limit: a.over_limit + b.over_limit,
+            no_tree: a.no_tree + b.no_tree,
+        })
+}
+
+/// The true tree's non-root node nearest `at`, within [`CONTACT_MATCH`].
+fn nearest_node(tree: &Tree, at: &Point3<f64>) -> Option<usize> {
+    (1..tree.len())
+        .map(|j| (j, (tree.position(j) - at).norm()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .filter(|(_, d)| *d <= CONTACT_MATCH)
+        .map(|(j, _)| j)
+}
+
+/// The results as a markdown table.
+pub fn to_markdown(rows: &[ConditionRow]) -> String {
+    let mut s = String::from(
+        "| condition | trees | points | recall 0.5 r / 1.0 r | precision 0.5 r / 1.0 r | radius error (mm): all / r ≥ 5 mm / r ≥ 10 mm | branch points | right parent | s per 100k points p50 / p95 | nodes / true |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    for r in rows {
+        s += &format!(
+            "| {} | {}{} | {:.0} | {:.3} / {:.3} | {:.3} / {:.3} | {:.2} / {:.2} / {:.2} | {:.2} | {:.2} | {:.3} / {:.3} | {:.2} |\n",
+            r.condition.label(),
+            r.trees,
+            if r.failed > 0 {
+                format!(" ({} refused)", r.failed)
+            } else {
+                String::new()
+            },
+            r.points_mean,
+            r.recall[0],
+            r.recall[1],
+            r.precision[0],
+            r.precision[1],
+            r.radius_error_mm[0],
+            r.radius_error_mm[1],
+            r.radius_error_mm[2],
+            r.branch_points_matched,
+            r.topology,
+            r.per_100k_p50,
+            r.per_100k_p95,
+            r.nodes_ratio
+        );
+    }
+    s
+}
