@@ -25,6 +25,14 @@ pub fn urdf(data: &[u8]) {
     }
 }
 
+/// PLY bytes → point cloud (at most 100,000 points) → a tree, when the
+/// cloud holds one.
+pub fn ply(data: &[u8]) {
+    if let Ok(cloud) = treemanip_core::scan::io::ply::read(data, 100_000) {
+        let _ = treemanip_core::scan::extract(&cloud, &Default::default());
+    }
+}
+
 /// `.npz` dataset file → validated episodes.
 pub fn npz(data: &[u8]) {
     let _ = treemanip_core::dataset::npz::read_size(

@@ -25,11 +25,10 @@ use petgraph::unionfind::UnionFind;
 
 use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread, principal_spread};
 use crate::scan::fine::{FineSkeleton, fine_skeleton};
-use crate::scan::leaves::sheets;
 use crate::scan::neighbours::{Graph, PointIndex};
 use crate::scan::simplify::simplify;
 use crate::scan::skeleton::Skeleton;
-use crate::scan::voxel::{Voxels, voxelize};
+use crate::scan::voxel::voxelize;
 
 /// The returned nodes' default spacing (m): the median branch length of
 /// the paper's generated trees (10-30 nodes, 0.6-1.7 m tall; 420 trees of
@@ -115,8 +114,6 @@ pub struct Dropped {
     /// a branch, or too far from it).
     pub fragments: usize,
     pub outside_crop: usize,
-    /// Points in thin flat sheets wider than a branch: leaves.
-    pub leaves: usize,
 }
 
 /// A tree found in a cloud.
@@ -170,21 +167,7 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
     }
     check_spread(&kept)?;
 
-    let mut voxels = voxelize(&kept, params.voxel);
-    {
-        let index = PointIndex::new(&voxels.centres);
-        let sheet = sheets(&voxels.centres, &index);
-        let mut kept_voxels = Voxels::default();
-        for (i, &s) in sheet.iter().enumerate() {
-            if s {
-                dropped.leaves += voxels.counts[i];
-            } else {
-                kept_voxels.centres.push(voxels.centres[i]);
-                kept_voxels.counts.push(voxels.counts[i]);
-            }
-        }
-        voxels = kept_voxels;
-    }
+    let voxels = voxelize(&kept, params.voxel);
     let (points, weights) = (&voxels.centres, &voxels.counts);
     let index = PointIndex::new(points);
     let link = LINK_VOXELS * params.voxel;

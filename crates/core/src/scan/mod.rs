@@ -20,7 +20,6 @@ pub mod extract;
 pub mod fine;
 pub mod forks;
 pub mod io;
-pub mod leaves;
 pub mod levels;
 pub mod neighbours;
 pub mod scanner;

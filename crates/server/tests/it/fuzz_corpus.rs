@@ -42,3 +42,8 @@ fn npz_corpus() {
 fn request_corpus() {
     replay("request", treemanip_server::fuzz::request);
 }
+
+#[test]
+fn ply_corpus() {
+    replay("ply", treemanip_server::fuzz::ply);
+}
