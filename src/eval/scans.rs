@@ -421,3 +421,143 @@ pub fn to_markdown(rows: &[ConditionRow]) -> String {
     }
     s
 }
+
+/// The file stem of tree `index`'s cloud under `condition`.
+pub fn cloud_stem(condition: &Condition, index: usize) -> String {
+    format!(
+        "v{}_n{:.0}_l{}_{index:03}",
+        condition.views,
+        condition.noise * 1e3,
+        condition.leaves
+    )
+}
+
+/// Writes every tree's cloud under `condition` as binary PLY into `dir`
+/// (for peers to read: `scripts/scan-peers`).
+pub fn write_clouds(
+    trees: &[Tree],
+    condition: &Condition,
+    seed: u64,
+    dir: &std::path::Path,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    for (i, tree) in trees.iter().enumerate() {
+        let cloud = scan(tree, &scan_params(condition, seed, i))
+            .map_err(anyhow::Error::msg)?
+            .cloud;
+        let path = dir.join(format!("{}.ply", cloud_stem(condition, i)));
+        let mut file = std::io::BufWriter::new(std::fs::File::create(&path)?);
+        crate::scan::io::ply::write(&cloud, &mut file)?;
+    }
+    Ok(())
+}
+
+/// A peer's answer for one cloud (`*.pytlidar.json`).
+#[derive(Debug, serde::Deserialize)]
+struct PeerAnswer {
+    points: usize,
+    seconds: Option<f64>,
+    cylinders: Option<Cylinders>,
+    error: Option<String>,
+}
+
+#[derive(Debug, serde::Deserialize)]
+struct Cylinders {
+    start: Vec<[f64; 3]>,
+    axis: Vec<[f64; 3]>,
+    length: Vec<f64>,
+    radius: Vec<f64>,
+    parent: Vec<i64>,
+}
+
+/// Cylinders with parents as a skeleton: a node at each cylinder's end,
+/// hanging from its parent cylinder's end (through a node at its own
+/// start when that is more than 1 mm away); root cylinders hang from the
+/// nearest node before them, the first from a node at its start.
+fn cylinders_skeleton(c: &Cylinders) -> Option<Skeleton> {
+    let n = c.start.len();
+    if n == 0 || [c.axis.len(), c.length.len(), c.radius.len(), c.parent.len()] != [n; 4] {
+        return None;
+    }
+    let start = |k: usize| Point3::from(c.start[k]);
+    let end = |k: usize| start(k) + nalgebra::Vector3::from(c.axis[k]) * c.length[k];
+    let mut s = Skeleton {
+        positions: vec![start(0)],
+        parents: vec![None],
+        radius: vec![c.radius[0]],
+    };
+    let mut end_node = vec![usize::MAX; n];
+    for k in 0..n {
+        let from = match usize::try_from(c.parent[k]).ok().filter(|&p| p < n) {
+            Some(p) if end_node[p] != usize::MAX => end_node[p],
+            _ => (0..s.len())
+                .min_by(|&a, &b| {
+                    (s.positions[a] - start(k))
+                        .norm()
+                        .total_cmp(&(s.positions[b] - start(k)).norm())
+                })
+                .unwrap_or(0),
+        };
+        let mut at = from;
+        if (s.positions[from] - start(k)).norm() > 0.001 {
+            s.positions.push(start(k));
+            s.parents.push(Some(from));
+            s.radius.push(c.radius[k]);
+            at = s.len() - 1;
+        }
+        s.positions.push(end(k));
+        s.parents.push(Some(at));
+        s.radius.push(c.radius[k]);
+        end_node[k] = s.len() - 1;
+    }
+    Some(s)
+}
+
+/// The peer's answers in `dir` for `condition`, scored like ours; `None`
+/// when the directory holds none for it.
+pub fn peer_row(
+    trees: &[Tree],
+    condition: &Condition,
+    dir: &std::path::Path,
+) -> anyhow::Result<Option<ConditionRow>> {
+    let mut rows = Vec::new();
+    for (i, tree) in trees.iter().enumerate() {
+        let path = dir.join(format!("{}.pytlidar.json", cloud_stem(condition, i)));
+        let Ok(text) = std::fs::read_to_string(&path) else {
+            continue;
+        };
+        let answer: PeerAnswer = serde_json::from_str(&text)?;
+        let found = answer.cylinders.as_ref().and_then(cylinders_skeleton);
+        let truth = Skeleton::of_tree(tree);
+        rows.push(match found {
+            Some(found) => {
+                let s = score(&truth, &found);
+                TreeRow {
+                    n: tree.len(),
+                    points: answer.points,
+                    seconds: answer.seconds.unwrap_or(f64::NAN),
+                    nodes: found.len(),
+                    recall: s.recall,
+                    precision: s.precision,
+                    radius_error_mm: s.radius_error_mm,
+                    branch_points_matched: s.branch_points_matched,
+                    topology: s.topology,
+                    error: None,
+                }
+            }
+            None => TreeRow {
+                n: tree.len(),
+                points: answer.points,
+                seconds: answer.seconds.unwrap_or(f64::NAN),
+                nodes: 0,
+                recall: [0.0; 2],
+                precision: [0.0; 2],
+                radius_error_mm: [f64::NAN; 3],
+                branch_points_matched: 0.0,
+                topology: 0.0,
+                error: Some(answer.error.unwrap_or_else(|| "no cylinders".into())),
+            },
+        });
+    }
+    Ok((!rows.is_empty()).then(|| summarise(condition, &rows)))
+}

@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 use treemanip::eval::scans::{
-    EndToEnd, LEAVES_PER_TWIG, default_conditions, end_to_end, evaluate_condition, test_trees,
-    to_markdown,
+    EndToEnd, LEAVES_PER_TWIG, default_conditions, end_to_end, evaluate_condition, peer_row,
+    test_trees, to_markdown, write_clouds,
 };
 use treemanip::planner::objective::{DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS, Limits};
 
@@ -30,6 +30,14 @@ pub struct EvalScansArgs {
     /// view, 3 mm, leaves).
     #[arg(long)]
     headline_only: bool,
+    /// Write the clouds of the two headline conditions here (binary PLY),
+    /// for `scripts/scan-peers`.
+    #[arg(long)]
+    write_clouds: Option<PathBuf>,
+    /// Score a peer's answers found here (`scripts/scan-peers` wrote them
+    /// beside the clouds) side by side with ours.
+    #[arg(long)]
+    peers: Option<PathBuf>,
     /// Where the table (`scan_eval.md`) and the rows (`scan_eval.json`) go.
     #[arg(long, default_value = "docs/results")]
     out: PathBuf,
@@ -44,6 +52,7 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
     };
     let mut rows = Vec::new();
     let mut ends: Vec<(String, EndToEnd)> = Vec::new();
+    let mut peers = Vec::new();
     for condition in default_conditions() {
         let headline = (condition.views == 3 && condition.noise == 0.002 && condition.leaves == 0)
             || (condition.views == 1
@@ -52,7 +61,17 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
         if args.headline_only && !headline {
             continue;
         }
+        if let Some(dir) = &args.write_clouds
+            && headline
+        {
+            write_clouds(&trees, &condition, args.seed, dir)?;
+        }
         let (row, extractions) = evaluate_condition(&trees, &condition, args.seed);
+        if let Some(dir) = &args.peers
+            && let Some(peer) = peer_row(&trees, &condition, dir)?
+        {
+            peers.push((row.clone(), peer));
+        }
         eprintln!(
             "{}: recall {:.3}, precision {:.3} (1.0 r), radius {:.2} mm, {:.3} s per 100k points",
             condition.label(),
@@ -98,6 +117,30 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
                 e.over_limit,
                 e.no_tree
             );
+        }
+    }
+    if !peers.is_empty() {
+        md += "\n## Side by side: PyTLidar 1.1.2 (TreeQSM's port) on the same clouds\n\n`scripts/scan-peers DIR` on the clouds `--write-clouds DIR` wrote, scored by the same code; PyTLidar's time is its repeat run (numba compiled), ours the extraction's.\n\n";
+        let mut rows = Vec::new();
+        for (ours, peer) in &peers {
+            rows.push(ours.clone());
+            rows.push(peer.clone());
+        }
+        let table = to_markdown(&rows);
+        // Label alternate rows: ours, then the peer's.
+        let mut k = 0;
+        for line in table.lines() {
+            if line.starts_with("| ")
+                && !line.starts_with("| condition")
+                && !line.starts_with("| ---")
+            {
+                let who = if k % 2 == 0 { "treemanip" } else { "PyTLidar" };
+                md += &line.replacen("| ", &format!("| {who}: "), 1);
+                k += 1;
+            } else {
+                md += line;
+            }
+            md += "\n";
         }
     }
     std::fs::create_dir_all(&args.out)?;

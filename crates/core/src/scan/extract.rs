@@ -6,7 +6,7 @@
 //!    bark's area, not the scanner's point count).
 //! 3. Join each cube to its neighbours within a few cubes
 //!    ([`crate::scan::neighbours`]); isolated cubes are outliers.
-//! 4. Find the tree: the connected part holding `root`, or the lowest
+//! 4. Find the tree: the connected part holding `root`, or the tallest
 //!    large part; bridge gaps to other parts (an occluded stretch of
 //!    branch) only when the part is large enough to be a branch and the gap
 //!    is at most `max_gap`; what stays apart is a fragment. A second large
@@ -39,7 +39,7 @@ pub const DEFAULT_MAX_POINTS: usize = 2_000_000;
 /// A cloud needs at least this many points (after cropping).
 pub const MIN_POINTS: usize = 50;
 /// A given root may be at most this far (m) from the nearest point.
-pub const ROOT_TOLERANCE: f64 = 0.1;
+pub const ROOT_TOLERANCE: f64 = 0.25;
 /// The smallest tree (m, along `up`) the extraction looks for.
 pub const MIN_TREE_HEIGHT: f64 = 0.1;
 
@@ -48,7 +48,8 @@ pub const MIN_TREE_HEIGHT: f64 = 0.1;
 pub struct ExtractParams {
     /// Largest distance between consecutive joints along a branch.
     pub spacing: f64,
-    /// The trunk's base; by default the lowest large connected part's.
+    /// The trunk's base; by default the bottom of the tallest large
+    /// connected part.
     pub root: Option<Point3<f64>>,
     /// Which way is up (any length).
     pub up: Vector3<f64>,
@@ -141,6 +142,12 @@ const NEIGHBOURS: usize = 12;
 const MIN_PART_VOXELS: usize = 8;
 /// A part is bridged when its length is this many times its width.
 const ELONGATION: f64 = 2.5;
+/// Cubes double until the largest connected part holds this share of the
+/// points ...
+const CONNECTED_SHARE: f64 = 0.3;
+/// ... or reach this edge (m).
+const MAX_VOXEL: f64 = 0.064;
+
 /// Width of a level set, in cube edges.
 const BIN_VOXELS: f64 = 4.0;
 
@@ -167,22 +174,47 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
     }
     check_spread(&kept)?;
 
-    let voxels = voxelize(&kept, params.voxel);
+    let mut warnings = Vec::new();
+    // A sparse cloud (a mobile mapping scan, a distant tree) does not
+    // connect in small cubes: the cubes double until the largest connected
+    // part holds a good share of the points.
+    let mut voxel = params.voxel;
+    let (voxels, index, mut graph, labels) = loop {
+        let voxels = voxelize(&kept, voxel);
+        let index = PointIndex::new(&voxels.centres);
+        let graph = Graph::knn(&voxels.centres, &index, NEIGHBOURS, LINK_VOXELS * voxel);
+        let labels = graph.components(|_, _| true);
+        let mut size = vec![0usize; labels.iter().max().map_or(0, |m| m + 1)];
+        for (i, &l) in labels.iter().enumerate() {
+            size[l] += voxels.counts[i];
+        }
+        let largest = size.iter().copied().max().unwrap_or(0);
+        if largest as f64 >= CONNECTED_SHARE * kept.len() as f64 || 2.0 * voxel > MAX_VOXEL {
+            break (voxels, index, graph, labels);
+        }
+        voxel *= 2.0;
+    };
+    if voxel > params.voxel {
+        warnings.push(format!(
+            "the points are sparse: averaged in cubes of {:.1} cm instead of {:.1}, so branches thinner than about {:.1} cm are not resolved",
+            voxel * 100.0,
+            params.voxel * 100.0,
+            voxel * 100.0
+        ));
+    }
     let (points, weights) = (&voxels.centres, &voxels.counts);
-    let index = PointIndex::new(points);
-    let link = LINK_VOXELS * params.voxel;
-    let mut graph = Graph::knn(points, &index, NEIGHBOURS, link);
     let height = |p: &Point3<f64>| p.coords.dot(&up);
 
-    let labels = graph.components(|_, _| true);
     let parts = labels.iter().max().map_or(0, |m| m + 1);
     let mut part_voxels = vec![0usize; parts];
     let mut part_points = vec![0usize; parts];
     let mut part_low = vec![f64::INFINITY; parts];
+    let mut part_high = vec![f64::NEG_INFINITY; parts];
     for (i, &l) in labels.iter().enumerate() {
         part_voxels[l] += 1;
         part_points[l] += weights[i];
         part_low[l] = part_low[l].min(height(&points[i]));
+        part_high[l] = part_high[l].max(height(&points[i]));
     }
     for i in 0..points.len() {
         if graph.degree(i) == 0 {
@@ -210,16 +242,24 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
                     max: ROOT_TOLERANCE,
                 });
             }
-            labels[i]
+            // The largest part near the root (a stray point may be nearest).
+            index
+                .near(&root, 256, ROOT_TOLERANCE)
+                .iter()
+                .map(|&(j, _)| labels[j])
+                .max_by_key(|&l| part_points[l])
+                .unwrap_or(labels[i])
         }
+        // The tallest of the large parts (a quarter of the largest or
+        // more): a tree stands up from the ground; a clump of undergrowth
+        // or a stray patch does not.
         None => (0..parts)
-            .filter(|&l| part_voxels[l] >= MIN_PART_VOXELS.max(largest / 20))
-            .min_by(|&a, &b| part_low[a].total_cmp(&part_low[b]))
+            .filter(|&l| part_voxels[l] >= MIN_PART_VOXELS.max(largest / 4))
+            .max_by(|&a, &b| (part_high[a] - part_low[a]).total_cmp(&(part_high[b] - part_low[b])))
             .unwrap_or(0),
     };
 
     // Bridge parts to the tree (Kruskal over the parts' closest pairs).
-    let mut warnings = Vec::new();
     let bridges = bridges(points, &labels, &part_voxels, main, params.max_gap);
     let mut sets = UnionFind::<usize>::new(parts);
     let mut edges: Vec<(usize, usize, f64)> = Vec::new();
@@ -252,7 +292,10 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
         .sum();
     // A second tree: a large part apart from this one, standing as low.
     for l in 0..parts {
-        if in_tree(l, &mut sets) || part_points[l] * 5 < main_points {
+        if in_tree(l, &mut sets)
+            || part_points[l] * 5 < main_points
+            || part_voxels[l] < MIN_PART_VOXELS
+        {
             continue;
         }
         if params.root.is_none() && part_low[l] < main_low + 0.15 {
@@ -291,7 +334,7 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
 
     // The trunk's base: the bottom slice of the tree (near the root when
     // one is given).
-    let bin = BIN_VOXELS * params.voxel;
+    let bin = BIN_VOXELS * voxel;
     let sources: Vec<usize> = match params.root {
         Some(root) => members
             .iter()

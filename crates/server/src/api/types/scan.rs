@@ -23,7 +23,7 @@ pub struct FromPointsRequest {
     #[serde(default)]
     #[schema(value_type = Option<Vec<Rgb>>)]
     pub colors: Option<Vec<Vec<f64>>>,
-    /// The trunk's base (m); default: the bottom of the lowest large
+    /// The trunk's base (m); default: the bottom of the tallest large
     /// connected part of the cloud.
     #[serde(default)]
     #[schema(value_type = Option<Vec3>)]
