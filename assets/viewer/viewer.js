@@ -1,5 +1,6 @@
 // treemanip viewer: draws what the API computes. Trees come from
-// /v1/trees/example, /v1/trees/urdf or pasted JSON; predictions from
+// /v1/trees/example, /v1/trees/urdf, a scanned cloud (/v1/trees/from-points)
+// or pasted JSON; predictions from
 // /v1/forward beside /v1/simulate; affordances from /v1/policy; arm motion
 // from /v1/plan and /v1/robot/link-poses. Nothing here re-implements the
 // server's geometry. The tree frame is z-up, metres.
@@ -7,38 +8,10 @@
 import * as THREE from './vendor/three.module.min.js';
 import { OrbitControls } from './vendor/OrbitControls.js';
 import { COLOURS, NODE_RADIUS, TreeMesh, shapeMesh } from './meshes.js';
+import { ApiError, api } from './api.js';
+import { treeFromCloud } from './cloud.js';
 
 const $ = (id) => document.getElementById(id);
-
-// ---------------------------------------------------------------- API
-
-class ApiError extends Error {}
-
-/** POST (with `body`) or GET `path`; throws ApiError with the API's message. */
-async function api(path, body) {
-  const init = body === undefined
-    ? { method: 'GET' }
-    : { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(body) };
-  let response;
-  try {
-    response = await fetch(path, init);
-  } catch (e) {
-    throw new ApiError(`${path}: the server did not answer (${e.message})`);
-  }
-  let payload = null;
-  try {
-    payload = await response.json();
-  } catch {
-    // not JSON: reported below
-  }
-  if (!response.ok) {
-    const err = payload && payload.error;
-    const text = err ? `${err.code}: ${err.message}` : `HTTP ${response.status}`;
-    throw new ApiError(`${path} → ${response.status} ${text}`);
-  }
-  if (payload === null) throw new ApiError(`${path}: the answer is not JSON`);
-  return payload;
-}
 
 function showError(message) {
   const box = $('error');
@@ -135,7 +108,7 @@ function norm(v) {
 }
 
 function clearResults() {
-  for (const name of ['predicted', 'truth', 'target', 'affordance', 'arm']) setLayer(name, null);
+  for (const name of ['predicted', 'truth', 'target', 'affordance', 'arm', 'cloud']) setLayer(name, null);
   state.truth = null;
   state.target = null;
   state.plan = null;
@@ -201,6 +174,14 @@ async function loadUrdf(file) {
   const text = await file.text();
   const answer = await api('/v1/trees/urdf', { urdf: text });
   setTree(answer.tree, file.name);
+}
+
+async function loadCloud(file) {
+  const { answer, dots } = await treeFromCloud(file);
+  setTree(answer.tree, `${file.name}: ${answer.points_used} points used`);
+  setLayer('cloud', dots);
+  document.body.dataset.cloud = String(dots.geometry.attributes.position.count);
+  if (answer.warnings.length) $('tree-status').textContent += ` ${answer.warnings.join(' ')}`;
 }
 
 async function loadJson() {
@@ -529,6 +510,10 @@ $('json-load').addEventListener('click', () => action(loadJson));
 $('urdf-file').addEventListener('change', (e) => {
   const file = e.target.files[0];
   if (file) action(() => loadUrdf(file));
+});
+$('ply-file').addEventListener('change', (e) => {
+  const file = e.target.files[0];
+  if (file) action(() => loadCloud(file));
 });
 $('push-node').addEventListener('change', (e) => selectNode(Number(e.target.value)));
 $('predict').addEventListener('click', () => action(predict));

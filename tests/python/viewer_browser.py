@@ -99,7 +99,7 @@ class Check:
             print(f"     screenshot {path}")
 
 
-def run(url, shots, urdf, urdf_nodes):
+def run(url, shots, urdf, urdf_nodes, ply=None, ply_points=None):
     browser = driver()
     c = Check(browser, shots)
     try:
@@ -184,6 +184,18 @@ def run(url, shots, urdf, urdf_nodes):
         c.shot("viewer_clear.png")
         Select(browser.find_element(By.ID, "plan-objective")).select_by_value("shape")
 
+        if ply:
+            browser.find_element(By.ID, "ply-file").send_keys(os.path.abspath(ply))
+            c.wait_idle()
+            nodes = int(c.js("return document.body.dataset.tree") or 0)
+            dots = int(c.js("return document.body.dataset.cloud") or 0)
+            c.ok(
+                nodes >= 5 and dots == ply_points,
+                f"a scanned cloud gives a tree ({nodes} nodes) drawn over its {dots} of {ply_points} points {c.error_text()!r}",
+            )
+            c.drawn("tree from a cloud")
+            c.shot("viewer_cloud.png")
+
         if urdf:
             browser.find_element(By.ID, "urdf-file").send_keys(os.path.abspath(urdf))
             c.wait_idle()
@@ -223,10 +235,12 @@ def main():
     parser.add_argument("--screenshots")
     parser.add_argument("--urdf", help="a tree URDF to upload through the page")
     parser.add_argument("--urdf-nodes", type=int, help="its node count")
+    parser.add_argument("--ply", help="a scanned cloud (PLY) to upload through the page")
+    parser.add_argument("--ply-points", type=int, help="its point count")
     args = parser.parse_args()
     if args.screenshots:
         os.makedirs(args.screenshots, exist_ok=True)
-    failed = run(args.url.rstrip("/"), args.screenshots, args.urdf, args.urdf_nodes)
+    failed = run(args.url.rstrip("/"), args.screenshots, args.urdf, args.urdf_nodes, args.ply, args.ply_points)
     if failed:
         print(f"{len(failed)} checks failed", file=sys.stderr)
         sys.exit(1)

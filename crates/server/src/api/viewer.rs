@@ -27,9 +27,11 @@ macro_rules! asset {
     };
 }
 
-const ASSETS: [Asset; 7] = [
+const ASSETS: [Asset; 10] = [
     asset!("index.html", "text/html; charset=utf-8"),
     asset!("viewer.js", "text/javascript; charset=utf-8"),
+    asset!("api.js", "text/javascript; charset=utf-8"),
+    asset!("cloud.js", "text/javascript; charset=utf-8"),
     asset!("meshes.js", "text/javascript; charset=utf-8"),
     asset!("viewer.css", "text/css; charset=utf-8"),
     asset!(
@@ -37,6 +39,7 @@ const ASSETS: [Asset; 7] = [
         "text/javascript; charset=utf-8"
     ),
     asset!("vendor/OrbitControls.js", "text/javascript; charset=utf-8"),
+    asset!("vendor/PLYLoader.js", "text/javascript; charset=utf-8"),
     asset!("vendor/LICENSE-three.txt", "text/plain; charset=utf-8"),
 ];
 

@@ -46,6 +46,9 @@ fn the_page_and_its_files_are_served_from_the_binary() {
         ("/viewer/viewer.css", "text/css"),
         ("/viewer/vendor/three.module.min.js", "text/javascript"),
         ("/viewer/vendor/OrbitControls.js", "text/javascript"),
+        ("/viewer/vendor/PLYLoader.js", "text/javascript"),
+        ("/viewer/api.js", "text/javascript"),
+        ("/viewer/cloud.js", "text/javascript"),
         ("/viewer/vendor/LICENSE-three.txt", "text/plain"),
     ] {
         let (status, head, body) = server.request("GET", path, "text/plain", b"");
@@ -265,6 +268,19 @@ fn the_viewer_runs_its_flows_in_chromium() {
     let tree = generate(11, 2, &ScaParams::default()).unwrap();
     let urdf = dir.join("tree.urdf");
     std::fs::write(&urdf, to_urdf_string(&tree, "example", &Wood::default())).unwrap();
+    // A scan of another tree, to upload as a cloud.
+    let scanned = treemanip_core::scan::scan(
+        &generate(14, 4, &ScaParams::default()).unwrap(),
+        &treemanip_core::scan::ScanParams {
+            samples_per_view: 15_000,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let ply = dir.join("scan.ply");
+    let mut bytes = Vec::new();
+    treemanip_core::scan::io::ply::write(&scanned.cloud, &mut bytes).unwrap();
+    std::fs::write(&ply, bytes).unwrap();
     let mut command = Command::new("python3");
     command
         .arg(concat!(
@@ -274,7 +290,11 @@ fn the_viewer_runs_its_flows_in_chromium() {
         .arg(format!("http://{}", server.addr))
         .arg("--urdf")
         .arg(&urdf)
-        .args(["--urdf-nodes", "11"]);
+        .args(["--urdf-nodes", "11"])
+        .arg("--ply")
+        .arg(&ply)
+        .arg("--ply-points")
+        .arg(scanned.cloud.len().to_string());
     if let Some(shots) = std::env::var_os("TREEMANIP_VIEWER_SCREENSHOTS") {
         command.arg("--screenshots").arg(shots);
     }
