@@ -216,9 +216,9 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
         part_low[l] = part_low[l].min(height(&points[i]));
         part_high[l] = part_high[l].max(height(&points[i]));
     }
-    for i in 0..points.len() {
+    for (i, w) in weights.iter().enumerate() {
         if graph.degree(i) == 0 {
-            dropped.outliers += weights[i];
+            dropped.outliers += w;
         }
     }
     if graph.len() - (0..points.len()).filter(|&i| graph.degree(i) == 0).count() < MIN_POINTS / 5 {

@@ -172,6 +172,9 @@ fn compact(skeleton: &Skeleton, keep: &[bool]) -> (Skeleton, Vec<usize>) {
     (out, kept)
 }
 
+/// A run from a fork to a tip: its length (m) and its pieces.
+type Run = (f64, Vec<usize>);
+
 /// Removes side branches shorter than `length` that end in a tip (when a
 /// fork's every arm is that short, the longest stays), until none is
 /// left. Returns the kept pieces (renumbered, parents first) and how many
@@ -188,7 +191,7 @@ fn prune(mut pieces: Vec<Piece>, length: f64) -> (Vec<Piece>, usize) {
         }
         // Length of the single-child run from each fork child to its tip
         // (None when it forks again).
-        let run = |start: usize| -> Option<(f64, Vec<usize>)> {
+        let run = |start: usize| -> Option<Run> {
             let mut nodes = vec![start];
             let mut at = start;
             let mut len = (pieces[start].centroid
@@ -204,12 +207,11 @@ fn prune(mut pieces: Vec<Piece>, length: f64) -> (Vec<Piece>, usize) {
         };
         let mut remove = vec![false; n];
         let mut any = false;
-        for fork in 0..n {
-            if children[fork].len() < 2 {
+        for (fork, arms) in children.iter().enumerate() {
+            if arms.len() < 2 {
                 continue;
             }
-            let runs: Vec<(usize, Option<(f64, Vec<usize>)>)> =
-                children[fork].iter().map(|&c| (c, run(c))).collect();
+            let runs: Vec<(usize, Option<Run>)> = arms.iter().map(|&c| (c, run(c))).collect();
             let longest_arm = runs
                 .iter()
                 .map(|(_, r)| r.as_ref().map_or(f64::INFINITY, |r| r.0))
@@ -229,14 +231,14 @@ fn prune(mut pieces: Vec<Piece>, length: f64) -> (Vec<Piece>, usize) {
             // A stub is too short to be a twig, or short and wider than
             // the branch it would grow from (a leaf: a twig is never wider
             // than its parent).
-            let leafy = |r: &(f64, Vec<usize>)| {
+            let leafy = |r: &Run| {
                 let mut widths: Vec<f64> = r.1.iter().map(|&k| pieces[k].spread).collect();
                 r.0 < LEAF_LENGTH
                     && median(&mut widths)
                         .is_some_and(|w| w > LEAF_WIDTH_RATIO * parent_width + LEAF_WIDTH_SLACK)
             };
             // Shortest stubs go first; the longest of an all-stub fork stays.
-            let mut stubs: Vec<&(f64, Vec<usize>)> = runs
+            let mut stubs: Vec<&Run> = runs
                 .iter()
                 .filter_map(|(_, r)| r.as_ref())
                 .filter(|r| r.0 < length || leafy(r))

@@ -90,7 +90,7 @@ impl Graph {
         };
         graph.offsets.push(0);
         for mut list in lists {
-            list.sort_by(|x, y| x.0.cmp(&y.0));
+            list.sort_by_key(|e| e.0);
             list.dedup_by_key(|e| e.0);
             for (t, d) in list {
                 graph.targets.push(t);

@@ -147,7 +147,7 @@ mod tests {
         assert_eq!(out.len(), 5, "{:?}", out.positions);
         for (j, p) in out.parents.iter().enumerate().skip(1) {
             let d = (out.positions[j] - out.positions[p.unwrap()]).norm();
-            assert!(d <= 0.12 + 1e-9 && d >= MIN_JOINT_SPACING - 1e-9, "{d}");
+            assert!((MIN_JOINT_SPACING - 1e-9..=0.12 + 1e-9).contains(&d), "{d}");
         }
     }
 }

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use nalgebra::Point3;
 
-use super::FormatError;
+use super::error::FormatError;
 use crate::scan::cloud::PointCloud;
 
 pub fn read(path: &Path, max_points: usize) -> Result<PointCloud, FormatError> {

@@ -2,6 +2,7 @@
 //! and XYZ text (three numbers per line). Every reader stops at
 //! `max_points` and names what is wrong with a file.
 
+pub mod error;
 pub mod las;
 pub mod pcd;
 pub mod ply;
@@ -10,27 +11,7 @@ pub mod xyz;
 use std::path::Path;
 
 use crate::scan::cloud::PointCloud;
-
-/// Why a file holds no readable cloud.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum FormatError {
-    #[error("cannot read {0}")]
-    Io(String),
-    #[error("not a valid {format} file: {reason}")]
-    Parse {
-        format: &'static str,
-        reason: String,
-    },
-    #[error("the {format} file has no `{what}`")]
-    Missing {
-        format: &'static str,
-        what: &'static str,
-    },
-    #[error("the file has {got} points, more than the limit of {max}")]
-    TooMany { got: u64, max: usize },
-    #[error("unknown point cloud format `{0}`: use .ply, .pcd, .las, .laz or .xyz")]
-    UnknownFormat(String),
-}
+pub use error::FormatError;
 
 /// Reads a cloud, choosing the format by the file's extension.
 pub fn read_path(path: &Path, max_points: usize) -> Result<PointCloud, FormatError> {

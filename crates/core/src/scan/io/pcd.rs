@@ -8,7 +8,7 @@ use std::path::Path;
 use nalgebra::Point3;
 use pcd_rs::{DynReader, Field};
 
-use super::FormatError;
+use super::error::FormatError;
 use crate::scan::cloud::PointCloud;
 
 const FORMAT: &str = "PCD";

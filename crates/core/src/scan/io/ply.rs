@@ -14,7 +14,7 @@ use ply_rs_bw::ply::{
 };
 use ply_rs_bw::writer::Writer;
 
-use super::FormatError;
+use super::error::FormatError;
 use crate::scan::cloud::PointCloud;
 
 const FORMAT: &str = "PLY";

@@ -6,7 +6,7 @@ use std::io::BufRead;
 
 use nalgebra::Point3;
 
-use super::FormatError;
+use super::error::FormatError;
 use crate::scan::cloud::PointCloud;
 
 pub fn read(source: impl BufRead, max_points: usize) -> Result<PointCloud, FormatError> {
