@@ -24,7 +24,9 @@ use super::tasks::{best_push, clear_task, execute};
 use crate::dataset::{CollectConfig, Split};
 use crate::planner::objective::{Limits, SATISFIED};
 use crate::scan::skeleton::point_segment;
-use crate::scan::{ExtractParams, Extraction, ScanParams, Skeleton, extract, scan, score};
+use crate::scan::{
+    ExtractParams, Extraction, ScanParams, ScanScore, Skeleton, extract, scan, score,
+};
 use crate::seed::derive_seed;
 use crate::sim::Push;
 use crate::tree::collection::tree_set;
@@ -98,13 +100,38 @@ pub struct TreeRow {
     /// Extraction time (s).
     pub seconds: f64,
     pub nodes: usize,
-    pub recall: [f64; 2],
-    pub precision: [f64; 2],
-    pub radius_error_mm: [f64; 3],
-    pub branch_points_matched: f64,
-    pub topology: f64,
+    /// The scores (all zero when the extraction failed).
+    pub score: ScanScore,
     /// The extraction's error, if it refused the cloud.
     pub error: Option<String>,
+}
+
+impl TreeRow {
+    /// `found` scored against `tree`, or the failure `error`.
+    pub fn new(tree: &Tree, points: usize, seconds: f64, found: Result<&Skeleton, String>) -> Self {
+        let (nodes, score, error) = match found {
+            Ok(found) => (found.len(), score(&Skeleton::of_tree(tree), found), None),
+            Err(e) => (
+                0,
+                ScanScore {
+                    recall: [0.0; 2],
+                    precision: [0.0; 2],
+                    radius_error_mm: [f64::NAN; 3],
+                    branch_points_matched: 0.0,
+                    topology: 0.0,
+                },
+                Some(e),
+            ),
+        };
+        TreeRow {
+            n: tree.len(),
+            points,
+            seconds,
+            nodes,
+            score,
+            error,
+        }
+    }
 }
 
 /// A condition's averages over its trees.
@@ -157,36 +184,15 @@ pub fn evaluate_condition(
         let start = Instant::now();
         let result = extract(&cloud, &ExtractParams::default());
         let seconds = start.elapsed().as_secs_f64();
-        let truth = Skeleton::of_tree(tree);
-        let row = match &result {
-            Ok(e) => {
-                let s = score(&truth, &e.skeleton);
-                TreeRow {
-                    n: tree.len(),
-                    points: cloud.len(),
-                    seconds,
-                    nodes: e.skeleton.len(),
-                    recall: s.recall,
-                    precision: s.precision,
-                    radius_error_mm: s.radius_error_mm,
-                    branch_points_matched: s.branch_points_matched,
-                    topology: s.topology,
-                    error: None,
-                }
-            }
-            Err(err) => TreeRow {
-                n: tree.len(),
-                points: cloud.len(),
-                seconds,
-                nodes: 0,
-                recall: [0.0; 2],
-                precision: [0.0; 2],
-                radius_error_mm: [f64::NAN; 3],
-                branch_points_matched: 0.0,
-                topology: 0.0,
-                error: Some(err.to_string()),
-            },
-        };
+        let row = TreeRow::new(
+            tree,
+            cloud.len(),
+            seconds,
+            result
+                .as_ref()
+                .map(|e| &e.skeleton)
+                .map_err(|e| e.to_string()),
+        );
         rows.push(row);
         extractions.push(result.ok());
     }
@@ -215,12 +221,12 @@ pub fn summarise(condition: &Condition, rows: &[TreeRow]) -> ConditionRow {
         trees: rows.len(),
         failed: rows.iter().filter(|r| r.error.is_some()).count(),
         points_mean: mean(rows.iter().map(|r| r.points as f64)),
-        recall: [0, 1].map(|k| mean(rows.iter().map(|r| r.recall[k]))),
-        precision: [0, 1].map(|k| mean(rows.iter().map(|r| r.precision[k]))),
+        recall: [0, 1].map(|k| mean(rows.iter().map(|r| r.score.recall[k]))),
+        precision: [0, 1].map(|k| mean(rows.iter().map(|r| r.score.precision[k]))),
         radius_error_mm: [0, 1, 2]
-            .map(|k| median(rows.iter().map(|r| r.radius_error_mm[k]).collect())),
-        branch_points_matched: mean(rows.iter().map(|r| r.branch_points_matched)),
-        topology: mean(rows.iter().map(|r| r.topology)),
+            .map(|k| median(rows.iter().map(|r| r.score.radius_error_mm[k]).collect())),
+        branch_points_matched: mean(rows.iter().map(|r| r.score.branch_points_matched)),
+        topology: mean(rows.iter().map(|r| r.score.topology)),
         per_100k_p50: percentile(&per_100k, 0.5),
         per_100k_p95: percentile(&per_100k, 0.95),
         nodes_ratio: mean(rows.iter().map(|r| r.nodes as f64 / r.n as f64)),
@@ -528,36 +534,13 @@ pub fn peer_row(
         };
         let answer: PeerAnswer = serde_json::from_str(&text)?;
         let found = answer.cylinders.as_ref().and_then(cylinders_skeleton);
-        let truth = Skeleton::of_tree(tree);
-        rows.push(match found {
-            Some(found) => {
-                let s = score(&truth, &found);
-                TreeRow {
-                    n: tree.len(),
-                    points: answer.points,
-                    seconds: answer.seconds.unwrap_or(f64::NAN),
-                    nodes: found.len(),
-                    recall: s.recall,
-                    precision: s.precision,
-                    radius_error_mm: s.radius_error_mm,
-                    branch_points_matched: s.branch_points_matched,
-                    topology: s.topology,
-                    error: None,
-                }
-            }
-            None => TreeRow {
-                n: tree.len(),
-                points: answer.points,
-                seconds: answer.seconds.unwrap_or(f64::NAN),
-                nodes: 0,
-                recall: [0.0; 2],
-                precision: [0.0; 2],
-                radius_error_mm: [f64::NAN; 3],
-                branch_points_matched: 0.0,
-                topology: 0.0,
-                error: Some(answer.error.unwrap_or_else(|| "no cylinders".into())),
-            },
-        });
+        let failure = answer.error.unwrap_or_else(|| "no cylinders".into());
+        rows.push(TreeRow::new(
+            tree,
+            answer.points,
+            answer.seconds.unwrap_or(f64::NAN),
+            found.as_ref().ok_or(failure),
+        ));
     }
     Ok((!rows.is_empty()).then(|| summarise(condition, &rows)))
 }

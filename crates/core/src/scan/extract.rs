@@ -25,6 +25,7 @@ use petgraph::unionfind::UnionFind;
 
 use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread, principal_spread};
 use crate::scan::fine::{FineSkeleton, fine_skeleton};
+use crate::scan::levels::Geodesic;
 use crate::scan::neighbours::{Graph, PointIndex};
 use crate::scan::simplify::simplify;
 use crate::scan::skeleton::Skeleton;
@@ -364,11 +365,13 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
         points_used,
         notes,
     } = fine_skeleton(
-        points,
-        weights,
-        &graph,
-        &dist,
-        &pred,
+        &Geodesic {
+            points,
+            weights,
+            graph: &graph,
+            dist: &dist,
+            pred: &pred,
+        },
         bin,
         params.spacing,
         &up,

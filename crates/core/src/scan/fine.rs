@@ -5,8 +5,7 @@
 use nalgebra::{Point3, Vector3};
 
 use crate::scan::forks::relocate_forks;
-use crate::scan::levels::{Piece, cross_section, pieces};
-use crate::scan::neighbours::Graph;
+use crate::scan::levels::{Geodesic, Piece, cross_section, pieces};
 use crate::scan::skeleton::Skeleton;
 
 /// The fine skeleton and what was learnt making it.
@@ -27,18 +26,11 @@ const FULL_COVERAGE: f64 = 4.2;
 /// Raw points a piece needs for full confidence.
 const FULL_SUPPORT: f64 = 30.0;
 
-#[allow(clippy::too_many_arguments)]
-pub fn fine_skeleton(
-    points: &[Point3<f64>],
-    weights: &[usize],
-    graph: &Graph,
-    dist: &[f64],
-    pred: &[Option<usize>],
-    bin: f64,
-    spacing: f64,
-    up: &Vector3<f64>,
-) -> FineSkeleton {
-    let all = pieces(points, weights, graph, dist, pred, bin);
+/// The fine skeleton of the level sets `bin` (m) wide; `spacing` is the
+/// joints' (it sets how long a stub may be), `up` the unit up.
+pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) -> FineSkeleton {
+    let points = g.points;
+    let all = pieces(g, bin);
     let prune_length = (3.0 * bin).max(0.35 * spacing);
     let mut notes = Vec::new();
     let (pieces, pruned) = prune(all, prune_length);

@@ -33,16 +33,27 @@ pub struct Piece {
     pub weight: usize,
 }
 
-/// The pieces of the reached points, parents before children, piece 0 the
-/// root. `dist` and `pred` come from [`Graph::shortest_paths`].
-pub fn pieces(
-    points: &[Point3<f64>],
-    weights: &[usize],
-    graph: &Graph,
-    dist: &[f64],
-    pred: &[Option<usize>],
-    bin: f64,
-) -> Vec<Piece> {
+/// The tree's points (cube means and how many raw points each stands
+/// for), their graph, and the shortest paths from the trunk's base
+/// ([`Graph::shortest_paths`]): what the level sets are cut from.
+pub struct Geodesic<'a> {
+    pub points: &'a [Point3<f64>],
+    pub weights: &'a [usize],
+    pub graph: &'a Graph,
+    pub dist: &'a [f64],
+    pub pred: &'a [Option<usize>],
+}
+
+/// The pieces of the reached points in level sets `bin` (m) wide, parents
+/// before children, piece 0 the root.
+pub fn pieces(g: &Geodesic, bin: f64) -> Vec<Piece> {
+    let Geodesic {
+        points,
+        weights,
+        graph,
+        dist,
+        pred,
+    } = *g;
     let level: Vec<usize> = dist
         .iter()
         .map(|d| {

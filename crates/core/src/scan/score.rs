@@ -28,7 +28,7 @@ pub const FORK_TOLERANCE: f64 = 0.05;
 /// Radius classes (m, lower bounds) the radius error is reported by.
 pub const RADIUS_CLASSES: [f64; 3] = [0.0, 0.005, 0.01];
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct ScanScore {
     /// Recall at t = 0.5 and t = 1.0.
     pub recall: [f64; 2],
