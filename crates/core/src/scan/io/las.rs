@@ -32,3 +32,38 @@ pub fn read(path: &Path, max_points: usize) -> Result<PointCloud, FormatError> {
         .collect();
     Ok(PointCloud::new(points))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_written_las_reads_back_and_the_limit_holds() {
+        let path = std::env::temp_dir().join(format!("treemanip-las-{}.las", std::process::id()));
+        let points = [(0.5, -1.25, 2.0), (10.125, 3.0, -0.5), (0.0, 0.0, 0.001)];
+        {
+            let mut writer = las::Writer::from_path(&path, las::Header::default()).unwrap();
+            for &(x, y, z) in &points {
+                writer
+                    .write_point(las::Point {
+                        x,
+                        y,
+                        z,
+                        ..Default::default()
+                    })
+                    .unwrap();
+            }
+            writer.close().unwrap();
+        }
+        let cloud = read(&path, 10).unwrap();
+        for (p, &(x, y, z)) in cloud.points.iter().zip(&points) {
+            // LAS stores millimetre integers by default.
+            assert!((p - Point3::new(x, y, z)).norm() < 1e-3, "{p}");
+        }
+        assert!(matches!(
+            read(&path, 2),
+            Err(FormatError::TooMany { got: 3, max: 2 })
+        ));
+        std::fs::remove_file(&path).unwrap();
+    }
+}

@@ -60,3 +60,30 @@ fn first(field: &Field) -> Option<f64> {
         Field::F64(v) => *v.first()?,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ascii_pcd_with_extra_fields_reads_x_y_z() {
+        let path = std::env::temp_dir().join(format!("treemanip-pcd-{}.pcd", std::process::id()));
+        std::fs::write(
+            &path,
+            "# .PCD v0.7\nVERSION 0.7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n7 0.5 1 2\n8 3 4 5.25\n",
+        )
+        .unwrap();
+        let cloud = read(&path, 10).unwrap();
+        assert_eq!(
+            cloud.points,
+            vec![Point3::new(0.5, 1.0, 2.0), Point3::new(3.0, 4.0, 5.25)]
+        );
+        assert!(matches!(
+            read(&path, 1),
+            Err(FormatError::TooMany { got: 2, max: 1 })
+        ));
+        std::fs::write(&path, "not a pcd").unwrap();
+        assert!(read(&path, 10).is_err());
+        std::fs::remove_file(&path).unwrap();
+    }
+}
