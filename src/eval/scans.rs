@@ -40,12 +40,15 @@ pub struct Condition {
     pub noise: f64,
     /// Leaves per twig.
     pub leaves: usize,
+    /// Whether the cloud keeps its colours (the extraction then drops
+    /// foliage green); without, it has only x, y, z.
+    pub colour: bool,
 }
 
 impl Condition {
     pub fn label(&self) -> String {
         format!(
-            "{} view{}, {:.0} mm{}",
+            "{} view{}, {:.0} mm{}{}",
             self.views,
             if self.views == 1 { "" } else { "s" },
             self.noise * 1e3,
@@ -53,7 +56,8 @@ impl Condition {
                 format!(", {} leaves/twig", self.leaves)
             } else {
                 String::new()
-            }
+            },
+            if self.colour { ", RGB" } else { "" }
         )
     }
 }
@@ -62,17 +66,22 @@ impl Condition {
 /// 15-20 cm twig's outer two thirds.
 pub const LEAVES_PER_TWIG: usize = 8;
 
-/// The evaluation's grid: 1 and 3 viewpoints, 1-5 mm noise, with and
-/// without leaves.
+/// The evaluation's grid: 1 and 3 viewpoints, 1-5 mm noise, without
+/// leaves, with leaves (x, y, z only), with leaves and colour.
 pub fn default_conditions() -> Vec<Condition> {
     let mut out = Vec::new();
-    for leaves in [0, LEAVES_PER_TWIG] {
+    for (leaves, colour) in [
+        (0, false),
+        (LEAVES_PER_TWIG, false),
+        (LEAVES_PER_TWIG, true),
+    ] {
         for views in [1, 3] {
             for noise in [0.001, 0.002, 0.003, 0.005] {
                 out.push(Condition {
                     views,
                     noise,
                     leaves,
+                    colour,
                 });
             }
         }
@@ -177,10 +186,13 @@ pub fn evaluate_condition(
     let mut rows = Vec::new();
     let mut extractions = Vec::new();
     for (i, tree) in trees.iter().enumerate() {
-        let cloud = match scan(tree, &scan_params(condition, seed, i)) {
+        let mut cloud = match scan(tree, &scan_params(condition, seed, i)) {
             Ok(s) => s.cloud,
             Err(e) => panic!("the evaluation's scan parameters are valid: {e}"),
         };
+        if !condition.colour {
+            cloud.colors = None;
+        }
         let start = Instant::now();
         let result = extract(&cloud, &ExtractParams::default());
         let seconds = start.elapsed().as_secs_f64();
@@ -431,10 +443,11 @@ pub fn to_markdown(rows: &[ConditionRow]) -> String {
 /// The file stem of tree `index`'s cloud under `condition`.
 pub fn cloud_stem(condition: &Condition, index: usize) -> String {
     format!(
-        "v{}_n{:.0}_l{}_{index:03}",
+        "v{}_n{:.0}_l{}{}_{index:03}",
         condition.views,
         condition.noise * 1e3,
-        condition.leaves
+        condition.leaves,
+        if condition.colour { "c" } else { "" }
     )
 }
 
@@ -448,9 +461,12 @@ pub fn write_clouds(
 ) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir)?;
     for (i, tree) in trees.iter().enumerate() {
-        let cloud = scan(tree, &scan_params(condition, seed, i))
+        let mut cloud = scan(tree, &scan_params(condition, seed, i))
             .map_err(anyhow::Error::msg)?
             .cloud;
+        if !condition.colour {
+            cloud.colors = None;
+        }
         let path = dir.join(format!("{}.ply", cloud_stem(condition, i)));
         let mut file = std::io::BufWriter::new(std::fs::File::create(&path)?);
         crate::scan::io::ply::write(&cloud, &mut file)?;

@@ -58,7 +58,10 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
             || (condition.views == 1
                 && condition.noise == 0.003
                 && condition.leaves == LEAVES_PER_TWIG);
-        if args.headline_only && !headline {
+        // End to end also with colour, for the leafy headline.
+        let leafy_rgb = headline && condition.colour;
+        let headline = headline && !condition.colour;
+        if args.headline_only && !headline && !leafy_rgb {
             continue;
         }
         if let Some(dir) = &args.write_clouds
@@ -80,7 +83,7 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
             row.radius_error_mm[1],
             row.per_100k_p50
         );
-        if headline && args.tasks_per_tree > 0 {
+        if (headline || leafy_rgb) && args.tasks_per_tree > 0 {
             let e = end_to_end(
                 &trees,
                 &extractions,
@@ -94,7 +97,7 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
         rows.push(row);
     }
     let mut md = format!(
-        "# Trees from scans\n\nRegenerate: `treemanip eval scans --sizes {}..={} --per-size {} --tasks-per-tree {} --seed {}` ({} test-split trees; {:.0} s on this machine).\n\nSynthetic scans (`treemanip trees scan`): viewpoints 1.5 m from the trunk at half the tree's height, 40,000 surface samples per viewpoint before occlusion, depth noise σ at that range growing with the square of range; leaves are 5 cm discs near the twigs. Scores as in `crates/core/src/scan/score.rs` (Smart-Tree's recall and precision at t × the true radius).\n\n",
+        "# Trees from scans\n\nRegenerate: `treemanip eval scans --sizes {}..={} --per-size {} --tasks-per-tree {} --seed {}` ({} test-split trees; {:.0} s on this machine).\n\nSynthetic scans (`treemanip trees scan`): viewpoints 1.5 m from the trunk at half the tree's height, 40,000 surface samples per viewpoint before occlusion, depth noise σ at that range growing with the square of range; leaves are 5 cm discs near the twigs; every point has its colour (bark brown, leaf green) under varied light, kept only in the RGB conditions, where the extraction drops foliage-green points. Scores as in `crates/core/src/scan/score.rs` (Smart-Tree's recall and precision at t × the true radius).\n\n",
         args.sizes.0.first().copied().unwrap_or(0),
         args.sizes.0.last().copied().unwrap_or(0),
         args.per_size,

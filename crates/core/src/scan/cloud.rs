@@ -43,7 +43,9 @@ pub enum CloudError {
         expected: usize,
         got: usize,
     },
-    #[error("the crop box keeps {kept} points; at least {min} are needed")]
+    #[error(
+        "{kept} points remain inside the crop box (foliage-green ones dropped); at least {min} are needed"
+    )]
     TooFewInCrop { kept: usize, min: usize },
     #[error("only {got} points remain after outliers are removed; at least {min} are needed")]
     TooFew { got: usize, min: usize },

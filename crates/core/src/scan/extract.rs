@@ -1,7 +1,8 @@
 //! A tree from a point cloud: the parameters, what comes back, and the
 //! steps in order.
 //!
-//! 1. Check the cloud, crop it, refuse planes and lines.
+//! 1. Check the cloud, crop it, drop foliage-green points when it has
+//!    colours, refuse planes and lines.
 //! 2. Average the points in cubes of `voxel` (the work then follows the
 //!    bark's area, not the scanner's point count).
 //! 3. Join each cube to its neighbours within a few cubes
@@ -116,6 +117,8 @@ pub struct Dropped {
     /// a branch, or too far from it).
     pub fragments: usize,
     pub outside_crop: usize,
+    /// Points whose colour is foliage green (only when colours are given).
+    pub foliage: usize,
 }
 
 /// A tree found in a cloud.
@@ -143,6 +146,18 @@ const NEIGHBOURS: usize = 12;
 const MIN_PART_VOXELS: usize = 8;
 /// A part is bridged when its length is this many times its width.
 const ELONGATION: f64 = 2.5;
+/// Excess green (2g − r − b of the chromaticity) above which a point's
+/// colour is foliage (Woebbecke et al. 1995): bark, soil and fruit score
+/// near or below zero, leaves about 0.5.
+pub const FOLIAGE_EXCESS_GREEN: f64 = 0.15;
+
+/// Whether a colour is foliage green (dark colours never are: too little
+/// light to tell).
+pub fn is_foliage([r, g, b]: [u8; 3]) -> bool {
+    let sum = r as f64 + g as f64 + b as f64;
+    sum >= 30.0 && (2.0 * g as f64 - r as f64 - b as f64) / sum > FOLIAGE_EXCESS_GREEN
+}
+
 /// Cubes double until the largest connected part holds this share of the
 /// points ...
 const CONNECTED_SHARE: f64 = 0.3;
@@ -157,16 +172,20 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
     let up = params.validate()?;
     cloud.check(params.max_points)?;
     let mut dropped = Dropped::default();
-    let kept: Vec<Point3<f64>> = match &params.crop {
-        Some(crop) => cloud
-            .points
-            .iter()
-            .filter(|p| crop.contains(p))
-            .copied()
-            .collect(),
-        None => cloud.points.clone(),
-    };
-    dropped.outside_crop = cloud.len() - kept.len();
+    let inside: Vec<usize> = (0..cloud.len())
+        .filter(|&i| params.crop.is_none_or(|c| c.contains(&cloud.points[i])))
+        .collect();
+    dropped.outside_crop = cloud.len() - inside.len();
+    // With colours, foliage goes first: green points are leaves.
+    let kept: Vec<Point3<f64>> = inside
+        .iter()
+        .filter(|&&i| {
+            let leaf = cloud.colors.as_ref().is_some_and(|c| is_foliage(c[i]));
+            dropped.foliage += usize::from(leaf);
+            !leaf
+        })
+        .map(|&i| cloud.points[i])
+        .collect();
     if kept.len() < MIN_POINTS {
         return Err(CloudError::TooFewInCrop {
             kept: kept.len(),
@@ -491,4 +510,62 @@ fn part_distance(points: &[Point3<f64>], labels: &[usize], a: usize, b: usize) -
         .filter(|&i| labels[i] == b)
         .map(|i| index.nearest(&points[i]).1)
         .fold(f64::INFINITY, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scan::scanner::{Origin, ScanParams, scan};
+    use crate::scan::score::score;
+    use crate::tree::{ScaParams, generate};
+
+    #[test]
+    fn colours_drop_the_leaves_and_the_tree_comes_back() {
+        let tree = generate(18, 12, &ScaParams::default()).unwrap();
+        let params = ScanParams {
+            leaves_per_twig: 8,
+            samples_per_view: 20_000,
+            seed: 12,
+            ..ScanParams::default()
+        };
+        let scanned = scan(&tree, &params).unwrap();
+        let leaves = scanned
+            .origins
+            .iter()
+            .filter(|o| **o == Origin::Leaf)
+            .count();
+        let bark = scanned.cloud.len() - leaves;
+        let with = extract(&scanned.cloud, &ExtractParams::default()).unwrap();
+        // Every leaf point is green, no bark point is.
+        assert!(
+            with.dropped.foliage > leaves * 95 / 100,
+            "{:?} of {leaves}",
+            with.dropped
+        );
+        assert!(with.dropped.foliage <= leaves + bark / 1000);
+        let without = extract(
+            &PointCloud::new(scanned.cloud.points.clone()),
+            &ExtractParams::default(),
+        )
+        .unwrap();
+        assert_eq!(without.dropped.foliage, 0);
+        let truth = Skeleton::of_tree(&tree);
+        let (a, b) = (
+            score(&truth, &with.skeleton),
+            score(&truth, &without.skeleton),
+        );
+        assert!(
+            a.precision[1] > 0.9 && a.precision[1] > b.precision[1],
+            "{a:?} {b:?}"
+        );
+    }
+
+    #[test]
+    fn excess_green_tells_leaves_from_bark_and_fruit() {
+        assert!(is_foliage([74, 122, 46]));
+        assert!(is_foliage([40, 70, 25]));
+        assert!(!is_foliage([92, 68, 48]));
+        assert!(!is_foliage([168, 42, 36]));
+        assert!(!is_foliage([5, 20, 3]), "too dark to tell");
+    }
 }

@@ -11,7 +11,8 @@
 //! of the range, as a structured-light or time-of-flight camera's does:
 //! σ(d) = `noise` · (d / `distance`)². Leaves are discs near the twigs,
 //! fruit are spheres hanging beside branches, outliers are uniform in the
-//! tree's box grown by 0.2 m.
+//! tree's box grown by 0.2 m. Every point has the colour an RGB camera
+//! would record (bark brown, leaf green, fruit red, under varied light).
 
 use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
 use parry3d_f64::query::Ray;
@@ -214,10 +215,41 @@ pub fn scan(tree: &Tree, params: &ScanParams) -> Result<Scan, String> {
         points.push(p);
         origins.push(Origin::Outlier);
     }
+    let mut paint =
+        ChaCha8Rng::seed_from_u64(crate::seed::derive_seed(params.seed, &[COLOUR_STREAM]));
+    let colors = origins.iter().map(|o| colour(*o, &mut paint)).collect();
     Ok(Scan {
-        cloud: PointCloud::new(points),
+        cloud: PointCloud {
+            points,
+            normals: None,
+            colors: Some(colors),
+        },
         origins,
         viewpoints,
+    })
+}
+
+/// The seed stream of the points' colours.
+const COLOUR_STREAM: u64 = 0xC010;
+
+/// What an RGB camera would record of a point from `origin`: bark brown,
+/// leaf green, fruit red, outliers anything; each under its own lighting
+/// (55-125 % brightness) with a little sensor noise (±6 %, ±2).
+fn colour(origin: Origin, rng: &mut ChaCha8Rng) -> [u8; 3] {
+    let base = match origin {
+        Origin::Branch(_) => [92.0, 68.0, 48.0],
+        Origin::Leaf => [74.0, 122.0, 46.0],
+        Origin::Fruit => [168.0, 42.0, 36.0],
+        Origin::Outlier => [
+            rng.random_range(0.0..255.0),
+            rng.random_range(0.0..255.0),
+            rng.random_range(0.0..255.0),
+        ],
+    };
+    let light = rng.random_range(0.55..1.25);
+    base.map(|c: f64| {
+        (c * light * rng.random_range(0.94..1.06) + rng.random_range(-2.0..2.0)).clamp(0.0, 255.0)
+            as u8
     })
 }
 

@@ -264,6 +264,7 @@ impl FromPointsResponse {
                 outliers: e.dropped.outliers,
                 fragments: e.dropped.fragments,
                 outside_crop: e.dropped.outside_crop,
+                foliage: e.dropped.foliage,
             },
             warnings,
         }

@@ -136,8 +136,7 @@ fn bad_clouds_are_named() {
     );
     assert_eq!(status, 400);
     let (_, cloud) = scanned();
-    let mut doubled = cloud.clone();
-    doubled.points.extend(cloud.points.clone());
+    let doubled = PointCloud::new([cloud.points.clone(), cloud.points.clone()].concat());
     assert!(doubled.len() > 40_000);
     check(
         server.send(

@@ -17,6 +17,8 @@ pub enum FormatError {
     },
     #[error("the file has {got} points, more than the limit of {max}")]
     TooMany { got: u64, max: usize },
+    #[error("the cloud cannot be written: {0}")]
+    Invalid(String),
     #[error("unknown point cloud format `{0}`: use .ply, .pcd, .las, .laz or .xyz")]
     UnknownFormat(String),
 }

@@ -184,6 +184,9 @@ pub fn read(source: impl BufRead, max_points: usize) -> Result<PointCloud, Forma
 /// Writes a binary little-endian PLY with `x`, `y`, `z` as doubles (and
 /// normals and colours when the cloud has them).
 pub fn write(cloud: &PointCloud, out: &mut impl Write) -> Result<(), FormatError> {
+    cloud
+        .check(usize::MAX)
+        .map_err(|e| FormatError::Invalid(e.to_string()))?;
     let mut ply = Ply::<Vertex>::new();
     ply.header.encoding = Encoding::BinaryLittleEndian;
     let mut element = ElementDef::new("vertex".to_owned());
@@ -245,6 +248,13 @@ mod tests {
         assert!(matches!(
             read(&bytes[..], 1),
             Err(FormatError::TooMany { got: 2, max: 1 })
+        ));
+        // Colours that do not match the points are refused, not indexed.
+        let mut bad = cloud.clone();
+        bad.points.push(Point3::origin());
+        assert!(matches!(
+            write(&bad, &mut Vec::new()),
+            Err(FormatError::Invalid(_))
         ));
     }
 

@@ -80,6 +80,9 @@ pub struct DroppedJson {
     pub fragments: usize,
     /// Points outside the crop box.
     pub outside_crop: usize,
+    /// Points whose colour is foliage green (excess green over 0.15; only
+    /// when `colors` are sent).
+    pub foliage: usize,
 }
 
 /// The tree found in the cloud, ready for every other endpoint.
