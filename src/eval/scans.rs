@@ -299,8 +299,9 @@ pub fn end_to_end(
                 };
                 out.tasks += 1;
                 let task_seed = derive_seed(seed, &[i as u64, t as u64]);
-                let solves = |push: &Push| {
-                    execute(tree, &objective, push).map(|(residual, _, loads)| {
+                // (satisfied within the limits, over the limits) on `held`.
+                let solves = |held: &Tree, push: &Push| {
+                    execute(held, &objective, push).map(|(residual, _, loads)| {
                         (
                             residual <= SATISFIED && limits.allow(&loads),
                             !limits.allow(&loads),
@@ -308,7 +309,7 @@ pub fn end_to_end(
                     })
                 };
                 let true_ok = best_push(tree, &objective, Some(limits), task_seed)
-                    .and_then(|s| solves(&s.push))
+                    .and_then(|s| solves(tree, &s.push))
                     .is_some_and(|(ok, _)| ok);
                 let Some(found) = &found else {
                     out.no_tree += 1;
@@ -326,20 +327,13 @@ pub fn end_to_end(
                 };
                 let carried = best_push(found, &cautious, Some(limits), task_seed).and_then(|s| {
                     let (held, node) = held_at(tree, &found.position(s.push.node))?;
-                    execute(
+                    solves(
                         &held,
-                        &objective,
                         &Push {
                             node,
                             vector: s.push.vector,
                         },
                     )
-                    .map(|(residual, _, loads)| {
-                        (
-                            residual <= SATISFIED && limits.allow(&loads),
-                            !limits.allow(&loads),
-                        )
-                    })
                 });
                 let (ok, over) = carried.unwrap_or((false, false));
                 out.true_solved += usize::from(true_ok);

@@ -5,11 +5,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
-use nalgebra::{Point3, Vector3};
-use treemanip::api::types::FromPointsResponse;
+use treemanip::api::types::{FromPointsQuery, FromPointsResponse};
 use treemanip::scan::io::{self, ply};
 use treemanip::scan::skeleton::cloud_svg;
-use treemanip::scan::{CropBox, ExtractParams, ScanParams, Skeleton, extract, scan};
+use treemanip::scan::{ExtractParams, ScanParams, Skeleton, extract, scan};
 
 #[derive(Args)]
 pub struct ScanArgs {
@@ -94,52 +93,33 @@ pub struct FromPointsArgs {
     #[arg(long, default_value_t = treemanip::scan::extract::DEFAULT_SPACING)]
     spacing: f64,
     /// The trunk's base, `x,y,z` (m).
-    #[arg(long, value_parser = parse_vec3)]
-    root: Option<Vector3<f64>>,
-    /// Which way is up, `x,y,z`.
-    #[arg(long, value_parser = parse_vec3, default_value = "0,0,1")]
-    up: Vector3<f64>,
+    #[arg(long)]
+    root: Option<String>,
+    /// Which way is up, `x,y,z` (default `0,0,1`).
+    #[arg(long)]
+    up: Option<String>,
     /// Only points in this box: `min_x,min_y,min_z,max_x,max_y,max_z` (m).
-    #[arg(long, value_parser = parse_crop)]
-    crop: Option<CropBox>,
+    #[arg(long)]
+    crop: Option<String>,
     /// Largest cloud read (points).
     #[arg(long, default_value_t = treemanip::scan::extract::DEFAULT_MAX_POINTS)]
     max_points: usize,
-}
-
-fn numbers(s: &str, n: usize) -> Result<Vec<f64>, String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|t| t.trim().parse::<f64>().map_err(|e| format!("`{t}`: {e}")))
-        .collect::<Result<_, _>>()?;
-    if v.len() != n || !v.iter().all(|c| c.is_finite()) {
-        return Err(format!("expected {n} comma-separated finite numbers"));
-    }
-    Ok(v)
-}
-
-fn parse_vec3(s: &str) -> Result<Vector3<f64>, String> {
-    numbers(s, 3).map(|v| Vector3::new(v[0], v[1], v[2]))
-}
-
-fn parse_crop(s: &str) -> Result<CropBox, String> {
-    numbers(s, 6).map(|v| CropBox {
-        min: Point3::new(v[0], v[1], v[2]),
-        max: Point3::new(v[3], v[4], v[5]),
-    })
 }
 
 pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
     let start = std::time::Instant::now();
     let cloud = io::read_path(&args.file, args.max_points)?;
     let read = start.elapsed();
-    let params = ExtractParams {
-        spacing: args.spacing,
-        root: args.root.map(Point3::from),
+    // The options as the endpoint's query reads them: one parser.
+    let query = FromPointsQuery {
+        root: args.root,
         up: args.up,
+        spacing: Some(args.spacing),
         crop: args.crop,
+    };
+    let params = ExtractParams {
         max_points: args.max_points,
-        ..ExtractParams::default()
+        ..query.params().map_err(|e| anyhow::anyhow!(e.message))?
     };
     let extraction = extract(&cloud, &params)?;
     eprintln!(

@@ -290,11 +290,9 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
             largest_bridge = largest_bridge.max(d);
         }
     }
-    let in_tree = |l: usize, sets: &mut UnionFind<usize>| sets.equiv(l, main);
-    let tree_edges: Vec<_> = edges
-        .into_iter()
-        .filter(|e| in_tree(labels[e.0], &mut sets))
-        .collect();
+    // Which parts the bridges joined to the tree's, decided once.
+    let in_tree: Vec<bool> = (0..parts).map(|l| sets.equiv(l, main)).collect();
+    let tree_edges: Vec<_> = edges.into_iter().filter(|e| in_tree[labels[e.0]]).collect();
     if !tree_edges.is_empty() {
         warnings.push(format!(
             "{} gaps in the points were bridged (the largest {:.1} cm): occluded or unsampled stretches of branch",
@@ -303,19 +301,16 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
         ));
     }
     let main_low = (0..parts)
-        .filter(|&l| in_tree(l, &mut sets))
+        .filter(|&l| in_tree[l])
         .map(|l| part_low[l])
         .fold(f64::INFINITY, f64::min);
     let main_points: usize = (0..parts)
-        .filter(|&l| in_tree(l, &mut sets))
+        .filter(|&l| in_tree[l])
         .map(|l| part_points[l])
         .sum();
     // A second tree: a large part apart from this one, standing as low.
     for l in 0..parts {
-        if in_tree(l, &mut sets)
-            || part_points[l] * 5 < main_points
-            || part_voxels[l] < MIN_PART_VOXELS
-        {
+        if in_tree[l] || part_points[l] * 5 < main_points || part_voxels[l] < MIN_PART_VOXELS {
             continue;
         }
         if params.root.is_none() && part_low[l] < main_low + 0.15 {
@@ -327,7 +322,7 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
         }
     }
     for l in 0..parts {
-        if !in_tree(l, &mut sets) && part_voxels[l] > 1 {
+        if !in_tree[l] && part_voxels[l] > 1 {
             dropped.fragments += part_points[l];
         }
     }
@@ -335,9 +330,7 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
     all_edges.extend(tree_edges);
     graph = Graph::from_edges(points.len(), &all_edges);
 
-    let members: Vec<usize> = (0..points.len())
-        .filter(|&i| in_tree(labels[i], &mut sets))
-        .collect();
+    let members: Vec<usize> = (0..points.len()).filter(|&i| in_tree[labels[i]]).collect();
     let (lo, hi) = members
         .iter()
         .map(|&i| height(&points[i]))

@@ -4,12 +4,13 @@
 //! names what is wrong with a cloud.
 
 use axum::extract::{RawQuery, Request, State};
-use nalgebra::{Point3, Vector3};
+use nalgebra::Point3;
 use serde_json::json;
 
 use super::AppState;
 use super::error::{ApiError, ErrorCode};
 use super::json::{media_type, parse_json, read_body};
+use super::validate::vector3;
 use crate::api::types::error::PostErrors;
 use crate::api::types::{
     CropJson, DroppedJson, FromPointsQuery, FromPointsRequest, FromPointsResponse, TreeJson,
@@ -87,16 +88,6 @@ pub async fn from_points(
     Ok(axum::Json(response))
 }
 
-fn vec3(field: &'static str, v: &[f64]) -> Result<[f64; 3], ApiError> {
-    <[f64; 3]>::try_from(v)
-        .ok()
-        .filter(|v| v.iter().all(|c| c.is_finite()))
-        .ok_or_else(|| {
-            ApiError::invalid_argument(format!("`{field}` must be three finite numbers"))
-                .with_details(json!({ "field": field }))
-        })
-}
-
 impl FromPointsRequest {
     /// The cloud and the extraction's options.
     pub fn into_cloud(self) -> Result<(PointCloud, ExtractParams), ApiError> {
@@ -120,7 +111,7 @@ impl FromPointsRequest {
             .normals
             .map(|n| {
                 n.iter()
-                    .map(|v| vec3("normals", v).map(Vector3::from))
+                    .map(|v| vector3(v, "normals"))
                     .collect::<Result<Vec<_>, _>>()
             })
             .transpose()?;
@@ -172,10 +163,10 @@ fn params(
     Ok(ExtractParams {
         spacing: spacing.unwrap_or(defaults.spacing),
         root: root
-            .map(|v| vec3("root", v).map(Point3::from))
+            .map(|v| vector3(v, "root").map(Point3::from))
             .transpose()?,
         up: up
-            .map(|v| vec3("up", v).map(Vector3::from))
+            .map(|v| vector3(v, "up"))
             .transpose()?
             .unwrap_or(defaults.up),
         crop: crop.map(|c| CropBox {
