@@ -8,5 +8,6 @@ pub mod plan;
 pub mod plots;
 pub mod ranks;
 pub mod scans;
+pub mod sizes;
 pub mod stiffness;
 pub mod tasks;

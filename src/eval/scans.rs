@@ -29,6 +29,7 @@ use crate::scan::{
 };
 use crate::seed::derive_seed;
 use crate::sim::Push;
+use crate::tree::collection::TreeShape;
 use crate::tree::collection::tree_set;
 use crate::tree::{Branch, MAX_NODES, ScaParams, Tree, Wood};
 
@@ -95,7 +96,15 @@ pub fn test_trees(sizes: &[usize], per_size: usize) -> anyhow::Result<Vec<Tree>>
     let base = derive_seed(config.seed, &[Split::Test.seed_part()]);
     let mut out = Vec::new();
     for &n in sizes {
-        let set = tree_set(n, per_size, base, &ScaParams::default(), true, |_, _| {})?;
+        let set = tree_set(
+            n,
+            per_size,
+            base,
+            &ScaParams::default(),
+            TreeShape::Sca,
+            true,
+            |_, _| {},
+        )?;
         out.extend(set.into_iter().map(|(_, t)| t));
     }
     Ok(out)

@@ -13,6 +13,7 @@
 //! deliberately unlike the exported ONNX graph (which splits the first layer
 //! of f_e by input), so the two check each other.
 
+use crate::graph::path::Encoding;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -98,6 +99,10 @@ pub struct GnnConfig {
     /// Which node pairs exchange messages (ablation; the paper: full).
     #[serde(default)]
     pub connectivity: Connectivity,
+    /// What graph the model reads and what it answers: the paper's whole
+    /// tree (Δp per node) or the push's path (θ per path joint).
+    #[serde(default)]
+    pub encoding: Encoding,
 }
 
 impl GnnConfig {
@@ -109,6 +114,7 @@ impl GnnConfig {
             layers: 5,
             edge_attributes: EdgeAttributes::default(),
             connectivity: Connectivity::default(),
+            encoding: Encoding::Full,
         }
     }
 }

@@ -7,6 +7,7 @@ use super::gnn::{self, GnnWeights};
 use super::onnx;
 use super::pointnet::{self, PointNetWeights};
 use crate::graph::contract::ModelOutput;
+use crate::graph::path::Encoding;
 use crate::graph::{Batch, Task};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -59,9 +60,21 @@ impl ModelWeights {
         }
     }
 
-    /// `forward_gnn`, `policy_pointnet`, ...: the file stem in `models/`.
+    /// What graph the model reads.
+    pub fn encoding(&self) -> Encoding {
+        match self {
+            ModelWeights::Gnn(w) => w.config.encoding,
+            ModelWeights::PointNet(_) => Encoding::Full,
+        }
+    }
+
+    /// `forward_gnn`, `policy_pointnet`, `forward_path` (a GNN on the
+    /// push's path), ...: the file stem in `models/`.
     pub fn stem(&self) -> String {
-        format!("{}_{}", self.task().name(), self.arch().name())
+        match self.encoding() {
+            Encoding::Full => format!("{}_{}", self.task().name(), self.arch().name()),
+            Encoding::Path => format!("{}_path", self.task().name()),
+        }
     }
 
     /// The reference forward pass.
@@ -97,7 +110,11 @@ impl ModelWeights {
     pub fn describe(&self) -> String {
         match self {
             ModelWeights::Gnn(w) => format!(
-                "gnn: {} graph2graph layers, hidden {}, edge attributes {}, {:?} connectivity",
+                "gnn{}: {} graph2graph layers, hidden {}, edge attributes {}, {:?} connectivity",
+                match w.config.encoding {
+                    Encoding::Full => "",
+                    Encoding::Path => " on the push's path, joint rotations out",
+                },
                 w.config.layers,
                 w.config.hidden,
                 w.config.edge_attributes.label(),

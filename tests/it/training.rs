@@ -423,7 +423,13 @@ fn a_run_started_from_another_keeps_its_weights_and_takes_its_own_attributes() {
     let mut config = tiny_config(Task::Forward, Arch::Gnn, &tmp, 1);
     config.init_from = Some(source.clone());
     config.edge_attributes = "dp+v".parse().unwrap();
-    let examples = treemanip::nn::train::data::Examples::load(&tmp, &config.sizes, None).unwrap();
+    let examples = treemanip::nn::train::data::Examples::load(
+        &tmp,
+        &config.sizes,
+        None,
+        treemanip::graph::path::Encoding::Full,
+    )
+    .unwrap();
     let norm = treemanip::nn::train::Normalisation::of(&examples, &config).unwrap();
     let state = read_state(&source).unwrap();
     assert_eq!(

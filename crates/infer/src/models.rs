@@ -10,6 +10,7 @@ use nalgebra::{Point3, Vector3};
 use super::batcher::{BatchLimits, Batcher, JobControl};
 use super::{Backend, InferError, LoadProblem, OnnxModel, init_backend, read_metadata};
 use treemanip_core::graph::contract::ModelOutput;
+use treemanip_core::graph::path::{Encoding, encode_forward_path};
 use treemanip_core::graph::{FEATURE_LAYOUT_VERSION, Task, batch, encode_forward, encode_policy};
 use treemanip_core::model::card::ModelCard;
 use treemanip_core::planner::Candidate;
@@ -267,9 +268,19 @@ impl ModelSet {
         self.models.iter().find(|m| m.name == name)
     }
 
-    /// The model that answers a task by default: the GNN.
+    /// The model that answers a task by default: for the forward model the
+    /// path GNN where it is loaded (no size limit, error flat in the
+    /// tree's size), else the paper's GNN; the GNN for the policy.
     pub fn default_for(&self, task: Task) -> Option<&ServedModel> {
-        self.get(&format!("{}_gnn", task.name()))
+        default_name(task).iter().find_map(|name| self.get(name))
+    }
+}
+
+/// The names [`ModelSet::default_for`] tries, in order.
+pub fn default_name(task: Task) -> &'static [&'static str] {
+    match task {
+        Task::Forward => &["forward_path", "forward_gnn"],
+        Task::Policy => &["policy_gnn"],
     }
 }
 
@@ -284,6 +295,9 @@ pub fn predict_displacements(
     control: &JobControl,
 ) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
     let _timer = InferenceTimer::start(model);
+    if model.card.encoding == Encoding::Path {
+        return predict_on_paths(model, tree, actions, control);
+    }
     let n = tree.len();
     let mut pending = Vec::new();
     // Split so that every session gets a share of a small call (a planner's
@@ -309,6 +323,47 @@ pub fn predict_displacements(
                         let v = &y.vectors[(k * n + j) * 3..(k * n + j) * 3 + 3];
                         Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64)
                     })
+                    .collect(),
+            );
+        }
+    }
+    Ok(out)
+}
+
+/// [`predict_displacements`] for a path model: each push's path graph (a
+/// few to a few dozen nodes, whatever the tree's size) through the model,
+/// its joint rotations placed on the whole tree by forward kinematics.
+fn predict_on_paths(
+    model: &ServedModel,
+    tree: &Tree,
+    actions: &[(usize, Vector3<f64>)],
+    control: &JobControl,
+) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
+    let graphs = actions
+        .iter()
+        .map(|(node, push)| encode_forward_path(tree, *node, push))
+        .collect::<Result<Vec<_>, _>>()?;
+    let deepest = graphs.iter().map(|g| g.input.n).max().unwrap_or(1);
+    let per_chunk = super::batcher::graphs_per_batch(deepest, MAX_BATCH, super::batcher::MAX_PAIRS)
+        .min(actions.len().div_ceil(model.sessions.max(1)))
+        .max(1);
+    let mut pending = Vec::new();
+    for chunk in graphs.chunks(per_chunk) {
+        let inputs: Vec<_> = chunk.iter().map(|g| g.input.clone()).collect();
+        let b = batch(&inputs)?;
+        pending.push((chunk, b.n, model.batcher.submit(b, control.clone())));
+    }
+    let mut out = Vec::with_capacity(actions.len());
+    for (chunk, n, answer) in pending {
+        let y = answer.wait()?;
+        for (k, graph) in chunk.iter().enumerate() {
+            let rows = &y.vectors[k * n * 3..(k + 1) * n * 3];
+            let placed = graph.positions(tree, rows);
+            out.push(
+                placed
+                    .iter()
+                    .zip(tree.positions())
+                    .map(|(a, b)| a - b)
                     .collect(),
             );
         }

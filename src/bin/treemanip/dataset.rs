@@ -11,6 +11,7 @@ use treemanip::dataset::shard::{FileJob, Shard, assign};
 use treemanip::dataset::{Split, read_size_file, write_size_file};
 use treemanip::sim::{ContactModel, GRIP_OFFSET, Hold};
 use treemanip::tree::StiffnessVariation;
+use treemanip::tree::collection::TreeShape;
 use treemanip::tree::render::{Arrow, Figure, Layer};
 
 use crate::trees::{NodeSizes, parse_sizes};
@@ -54,6 +55,10 @@ pub struct CollectArgs {
     /// Contact model: `slot` or `pinned`.
     #[arg(long, default_value = "slot")]
     contact: ContactModel,
+    /// Tree shape: `sca` (the paper's), `orchard` (leader, scaffolds and
+    /// laterals at the paper's spacing) or `mixed` (both, alternating).
+    #[arg(long, default_value = "sca")]
+    shape: TreeShape,
     /// Vary each branch's stiffness away from the radius formula by a
     /// log-normal factor exp(ε), ε ~ N(0, σ²) (0: the paper's data; 0.5 for
     /// stiffness-aware models; see `tree::stiffness`).
@@ -145,6 +150,7 @@ fn collect(args: CollectArgs) -> anyhow::Result<()> {
         seed: args.seed,
         trees_per_size: args.trees_per_size,
         contact: args.contact,
+        shape: args.shape,
         stiffness: StiffnessVariation {
             branch_log_sigma: args.stiffness_sigma,
             global_factor: args.stiffness_global,

@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+use treemanip::graph::path::Encoding;
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
@@ -110,6 +111,12 @@ pub struct TrainArgs {
     /// GNN: message passing over all node pairs or only along branches.
     #[arg(long, value_enum, default_value = "full")]
     connectivity: ConnectivityArg,
+    /// GNN forward model: `full` (the paper: the whole tree in, Δp per
+    /// node out) or `path` (the push's root-to-contact path in, its joints'
+    /// rotations out, every node placed by forward kinematics; no size
+    /// limit; exported as `forward_path`).
+    #[arg(long, default_value = "full")]
+    encoding: Encoding,
     /// GNN: start from this checkpoint directory's best weights
     /// (fine-tuning), carried over to the current feature layout; the
     /// architecture (--layers, --hidden, --connectivity) and normalisation
@@ -144,6 +151,11 @@ pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
     config.layers = args.layers;
     config.hidden = args.hidden;
     config.edge_attributes = args.edge_attributes;
+    config.encoding = args.encoding;
+    anyhow::ensure!(
+        config.encoding == Encoding::Full || (task == Task::Forward && arch == Arch::Gnn),
+        "--encoding path is for the GNN forward model"
+    );
     config.connectivity = match args.connectivity {
         ConnectivityArg::Full => Connectivity::Full,
         ConnectivityArg::Branches => Connectivity::Branches,
@@ -373,7 +385,8 @@ fn export_one(dir: &Path, out: &Path) -> anyhow::Result<PathBuf> {
         },
         validation: serde_json::to_value(&best_record)?,
         units: "SI: metres, N·m/rad".into(),
-        domain: domain_record(&state.config.data, &state.config.sizes)?,
+        domain: domain_record(&state.config.data, &state.config.sizes, weights.encoding())?,
+        encoding: weights.encoding(),
     };
     let bytes = weights.to_onnx(&card.to_metadata());
     let path = out.join(format!("{}.onnx", weights.stem()));
@@ -392,10 +405,16 @@ pub struct DomainArgs {
 }
 
 /// The domain of a model trained on `sizes` of `data`, as its card records it.
-fn domain_record(data: &Path, sizes: &[usize]) -> anyhow::Result<DomainRecord> {
+fn domain_record(data: &Path, sizes: &[usize], encoding: Encoding) -> anyhow::Result<DomainRecord> {
     let span = training_span(data, sizes)?;
+    let mut domain = span.domain(domain::Margin::STANDARD, domain::EVALUATED_NODES);
+    if encoding == Encoding::Path {
+        // No size limit: the model reads the path, whatever the tree.
+        domain.nodes = (treemanip::tree::MIN_NODES, treemanip::tree::MAX_NODES);
+        domain.encoding = Encoding::Path;
+    }
     Ok(DomainRecord {
-        domain: span.domain(domain::Margin::STANDARD, domain::EVALUATED_NODES),
+        domain,
         margin: domain::Margin::STANDARD,
         trained_sizes: sizes.to_vec(),
     })
@@ -415,7 +434,11 @@ pub fn domain_cmd(args: DomainArgs) -> anyhow::Result<()> {
             .with_context(|| format!("{}: training_config has no sizes", path.display()))?;
         let entry = (
             "domain".to_owned(),
-            serde_json::to_string(&domain_record(&args.data, &sizes)?)?,
+            serde_json::to_string(&domain_record(
+                &args.data,
+                &sizes,
+                serde_json::from_value(config["encoding"].clone()).unwrap_or_default(),
+            )?)?,
         );
         let out = treemanip::nn::onnx::with_metadata(&bytes, std::slice::from_ref(&entry))
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;

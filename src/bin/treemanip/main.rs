@@ -21,6 +21,8 @@ mod scans;
 mod scans_eval;
 mod sim;
 #[cfg(feature = "train")]
+mod sizes_eval;
+#[cfg(feature = "train")]
 mod tasks;
 mod trees;
 
@@ -112,6 +114,10 @@ enum EvalCommand {
     /// trees, and `clear` tasks planned on the extracted tree carried out
     /// on the true one.
     Scans(scans_eval::EvalScansArgs),
+    /// Forward models against the tree's size: e_N of each model and No
+    /// Action on held-out SCA and orchard trees of 10-500 nodes, the
+    /// models' time for one push and for 64, the simulator's per push.
+    Sizes(sizes_eval::EvalSizesArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -138,6 +144,7 @@ fn main() -> std::process::ExitCode {
         Command::Eval(EvalCommand::Plan(args)) => plan::eval_plan(args),
         #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Scans(args)) => scans_eval::eval_scans(args),
+        Command::Eval(EvalCommand::Sizes(args)) => sizes_eval::eval_sizes(args),
         #[cfg(feature = "train")]
         Command::Eval(EvalCommand::Tasks(args)) => tasks::eval_tasks(args),
         #[cfg(feature = "train")]

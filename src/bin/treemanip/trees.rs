@@ -8,7 +8,7 @@ use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
 use rayon::prelude::*;
 use serde::Serialize;
-use treemanip::tree::collection::{TreeOrigin, tree_set};
+use treemanip::tree::collection::{TreeOrigin, TreeShape, tree_set};
 use treemanip::tree::{self, ScaParams, Tree, render, urdf};
 
 #[derive(Subcommand)]
@@ -49,6 +49,11 @@ pub struct GenerateArgs {
     /// paper (100 unique topologies per size).
     #[arg(long)]
     allow_duplicate_topologies: bool,
+    /// Tree shape: `sca` (Space Colonization, the paper's 10-30 node
+    /// trees), `orchard` (a central leader with scaffolds and laterals at
+    /// the paper's node spacing, for 50-500 nodes) or `mixed`.
+    #[arg(long, default_value = "sca")]
+    shape: TreeShape,
 }
 
 #[derive(Args)]
@@ -108,6 +113,7 @@ pub fn run(cmd: TreesCommand) -> anyhow::Result<()> {
 #[derive(Serialize)]
 struct Index {
     generator: &'static str,
+    shape: TreeShape,
     base_seed: u64,
     params: ScaParams,
     trees: Vec<IndexEntry>,
@@ -153,6 +159,7 @@ fn generate(args: GenerateArgs) -> anyhow::Result<()> {
                 args.per_size,
                 args.seed,
                 &params,
+                args.shape,
                 !args.allow_duplicate_topologies,
                 |origin, tree| {
                     let file = format!("{dir}/tree_{:03}.urdf", origin.index);
@@ -184,11 +191,8 @@ fn generate(args: GenerateArgs) -> anyhow::Result<()> {
         entries.extend(result?);
     }
     let index = Index {
-        generator: concat!(
-            "treemanip ",
-            env!("CARGO_PKG_VERSION"),
-            " space colonization"
-        ),
+        generator: concat!("treemanip ", env!("CARGO_PKG_VERSION")),
+        shape: args.shape,
         base_seed: args.seed,
         params,
         trees: entries,

@@ -135,6 +135,7 @@ fn random_weights(config: &TrainConfig, norm: &Normalisation) -> ModelWeights {
                 layers: config.layers,
                 edge_attributes: config.edge_attributes,
                 connectivity: config.connectivity,
+                encoding: config.encoding,
             },
             norm.features.clone(),
             seed,

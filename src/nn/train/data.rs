@@ -10,12 +10,14 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::dataset::{Episode, SizeData, Split, read_size_file};
+use crate::graph::path::{Encoding, PathGraph, encode_forward_path};
 use crate::graph::stats::{Running, StatsBuilder};
 use crate::graph::{
     Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy, rotate_xy,
 };
 use crate::model::domain::Span;
 use crate::seed::derive_seed;
+use crate::sim::{ContactModel, SimConfig, simulate};
 
 /// Trees whose index in their size file satisfies this are held out for
 /// validation (10 %): validation measures generalisation to unseen trees.
@@ -26,6 +28,12 @@ pub fn is_validation_tree(tree: usize) -> bool {
 /// The episodes of one split, grouped by tree size.
 pub struct Examples {
     pub sizes: Vec<SizeData>,
+    /// What graph the model reads ([`Encoding::Path`]: the push's path,
+    /// learning joint rotations).
+    pub encoding: Encoding,
+    /// Path encoding only: each episode's joint rotations (3 per tree node,
+    /// rad), by simulating it again (the files hold final positions).
+    rotations: Vec<Vec<Vec<f32>>>,
     /// (size index, episode index) of the examples in use.
     pub train: Vec<(usize, usize)>,
     pub validation: Vec<(usize, usize)>,
@@ -58,8 +66,15 @@ impl Targets {
 impl Examples {
     /// Loads `train_N{n}.npz` for each size; `limit` caps the episodes per
     /// size (first ones in file order, for quick runs and tests).
-    pub fn load(dir: &Path, sizes: &[usize], limit: Option<usize>) -> anyhow::Result<Self> {
+    pub fn load(
+        dir: &Path,
+        sizes: &[usize],
+        limit: Option<usize>,
+        encoding: Encoding,
+    ) -> anyhow::Result<Self> {
         let mut out = Examples {
+            encoding,
+            rotations: Vec::new(),
             sizes: Vec::new(),
             train: Vec::new(),
             validation: Vec::new(),
@@ -70,7 +85,14 @@ impl Examples {
                 .map_err(|e| anyhow::anyhow!("reading {}: {e}", path.display()))?;
             let s = out.sizes.len();
             let count = limit.unwrap_or(usize::MAX).min(data.episodes.len());
+            let rotations = match encoding {
+                Encoding::Full => Vec::new(),
+                Encoding::Path => joint_rotations(&data, count),
+            };
             for (e, episode) in data.episodes.iter().enumerate().take(count) {
+                if encoding == Encoding::Path && rotations[e].is_empty() {
+                    continue;
+                }
                 if is_validation_tree(episode.tree) {
                     out.validation.push((s, e));
                 } else {
@@ -78,6 +100,7 @@ impl Examples {
                 }
             }
             out.sizes.push(data);
+            out.rotations.push(rotations);
         }
         anyhow::ensure!(
             !out.train.is_empty(),
@@ -99,6 +122,9 @@ impl Examples {
 
     /// The encoded model input of one example.
     pub fn graph(&self, task: Task, id: (usize, usize)) -> GraphInput {
+        if self.encoding == Encoding::Path {
+            return self.path_graph(id).input;
+        }
         let (data, episode) = self.episode(id);
         let tree = data.tree_of(episode);
         let encoded = match task {
@@ -106,6 +132,43 @@ impl Examples {
             Task::Policy => encode_policy(tree, &episode.final_positions),
         };
         encoded.expect("dataset episodes are validated when read")
+    }
+
+    /// The path graph of one example (forward model, path encoding).
+    fn path_graph(&self, id: (usize, usize)) -> PathGraph {
+        let (data, episode) = self.episode(id);
+        encode_forward_path(
+            data.tree_of(episode),
+            episode.push.node,
+            &episode.push.vector,
+        )
+        .expect("dataset episodes are validated when read")
+    }
+
+    /// What the model learns for one example: per graph node, Δp (m) for
+    /// the full encoding, θ (rad) for the path encoding.
+    fn target_rows(&self, id: (usize, usize)) -> Vec<f32> {
+        let (data, episode) = self.episode(id);
+        match self.encoding {
+            Encoding::Full => episode
+                .final_positions
+                .iter()
+                .zip(data.tree_of(episode).positions())
+                .flat_map(|(after, before)| {
+                    let d = after - before;
+                    [d.x as f32, d.y as f32, d.z as f32]
+                })
+                .collect(),
+            Encoding::Path => {
+                let theta = &self.rotations[id.0][id.1];
+                let graph = self.path_graph(id);
+                let rotations: Vec<Vector3<f64>> = theta
+                    .chunks_exact(3)
+                    .map(|t| Vector3::new(t[0] as f64, t[1] as f64, t[2] as f64))
+                    .collect();
+                graph.rotation_targets(&rotations)
+            }
+        }
     }
 
     /// A padded batch and its targets.
@@ -143,19 +206,9 @@ impl Examples {
             push: Vec::with_capacity(ids.len() * 3),
         };
         for (k, &id) in ids.iter().enumerate() {
-            let (data, episode) = self.episode(id);
-            let tree = data.tree_of(episode);
-            for (j, (after, before)) in episode
-                .final_positions
-                .iter()
-                .zip(tree.positions())
-                .enumerate()
-            {
-                let d = after - before;
-                for c in 0..3 {
-                    targets.displacement[(k * n + j) * 3 + c] = d[c] as f32;
-                }
-            }
+            let (_, episode) = self.episode(id);
+            let rows = self.target_rows(id);
+            targets.displacement[k * n * 3..k * n * 3 + rows.len()].copy_from_slice(&rows);
             targets.contact.push(episode.push.node);
             let t: Vector3<f64> = episode.push.vector;
             targets.push.extend([t.x as f32, t.y as f32, t.z as f32]);
@@ -181,16 +234,18 @@ impl Examples {
             for j in 0..g.n {
                 position.push(&g.edge(0, j)[..3]);
             }
-            let (data, episode) = self.episode(id);
+            let (_, episode) = self.episode(id);
             match task {
                 Task::Forward => {
-                    for (after, before) in episode
-                        .final_positions
-                        .iter()
-                        .zip(data.tree_of(episode).positions())
-                    {
-                        let d = after - before;
-                        outputs.push(&[d.x as f32, d.y as f32, d.z as f32]);
+                    let rows = self.target_rows(id);
+                    // The path encoding's root and off-path rows are zero
+                    // by construction: only the path's joints count.
+                    let used = match self.encoding {
+                        Encoding::Full => 0..g.n,
+                        Encoding::Path => 1..self.path_graph(id).path_len,
+                    };
+                    for j in used {
+                        outputs.push(&rows[3 * j..3 * j + 3]);
                     }
                 }
                 Task::Policy => {
@@ -247,6 +302,51 @@ impl Examples {
         }
         out
     }
+}
+
+/// Each of the first `count` episodes' joint rotations (3 per tree node,
+/// rad), by simulating it again: with the slot contact, else the pinned
+/// one, whichever gives back the recorded final positions (to 1e-6 m). An
+/// episode neither reproduces gets an empty row and is left out.
+fn joint_rotations(data: &SizeData, count: usize) -> Vec<Vec<f32>> {
+    use rayon::prelude::*;
+    let rows: Vec<Vec<f32>> = data.episodes[..count]
+        .par_iter()
+        .map(|episode| {
+            let tree = data.tree_of(episode);
+            [ContactModel::Slot, ContactModel::Pinned]
+                .into_iter()
+                .find_map(|contact| {
+                    let config = SimConfig {
+                        contact,
+                        ..SimConfig::default()
+                    };
+                    let outcome = simulate(tree, &episode.push, &config).ok()?;
+                    let gap = outcome
+                        .final_positions
+                        .iter()
+                        .zip(&episode.final_positions)
+                        .map(|(a, b)| (a - b).norm())
+                        .fold(0.0, f64::max);
+                    (gap < 1e-6).then(|| {
+                        outcome
+                            .joint_rotations
+                            .iter()
+                            .flat_map(|t| [t.x as f32, t.y as f32, t.z as f32])
+                            .collect()
+                    })
+                })
+                .unwrap_or_default()
+        })
+        .collect();
+    let lost = rows.iter().filter(|r| r.is_empty()).count();
+    if lost > 0 {
+        eprintln!(
+            "path encoding: {lost} of {count} episodes of N = {} did not simulate again to their recorded positions; left out",
+            data.n
+        );
+    }
+    rows
 }
 
 /// The span of the training trees (index ≢ 9 mod 10, the validation

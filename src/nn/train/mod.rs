@@ -38,6 +38,7 @@ pub mod step;
 pub use self::device::{EdgeLayout, device_input};
 pub use self::memory::keep_freed_pages;
 
+use crate::graph::path::Encoding;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -121,6 +122,9 @@ pub struct TrainConfig {
     pub hidden: usize,
     pub edge_attributes: EdgeAttributes,
     pub connectivity: Connectivity,
+    /// GNN: the whole tree (the paper) or the push's path.
+    #[serde(default)]
+    pub encoding: Encoding,
     /// The graph encoding the run feeds (`crate::graph::FEATURE_LAYOUT_VERSION`
     /// when it started); checkpoints from before the field existed are layout 1.
     #[serde(default = "layout_one")]
@@ -160,6 +164,7 @@ impl TrainConfig {
             hidden: gnn.hidden,
             edge_attributes: gnn.edge_attributes,
             connectivity: gnn.connectivity,
+            encoding: gnn.encoding,
             feature_layout: crate::graph::FEATURE_LAYOUT_VERSION,
             init_from: None,
             command: String::new(),
@@ -273,7 +278,12 @@ pub fn train(
         );
     }
     std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
-    let examples = Examples::load(&config.data, &config.sizes, config.limit_per_size)?;
+    let examples = Examples::load(
+        &config.data,
+        &config.sizes,
+        config.limit_per_size,
+        config.encoding,
+    )?;
     let state = TrainState {
         normalisation: Normalisation::of(&examples, &config)?,
         learning_rate: config.learning_rate,
@@ -315,7 +325,12 @@ pub fn resume(
     }
     state.commands.push(options.command);
     let config = &state.config;
-    let examples = Examples::load(&config.data, &config.sizes, config.limit_per_size)?;
+    let examples = Examples::load(
+        &config.data,
+        &config.sizes,
+        config.limit_per_size,
+        config.encoding,
+    )?;
     anyhow::ensure!(
         Normalisation::of(&examples, config)? == state.normalisation,
         "the data in {} is not the data this run started on (its statistics differ); regenerate it with the run's dataset command",

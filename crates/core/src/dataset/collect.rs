@@ -20,7 +20,11 @@ use super::{Episode, SizeData, Split};
 use crate::seed::derive_seed;
 use crate::sim::sampling::PushDistribution;
 use crate::sim::{ContactModel, SimConfig, simulate};
-use crate::tree::collection::{CollectionError, tree_set};
+use crate::tree::collection::{CollectionError, TreeShape, tree_set};
+
+fn is_sca(shape: &TreeShape) -> bool {
+    *shape == TreeShape::Sca
+}
 use crate::tree::{ScaParams, StiffnessVariation};
 
 /// Seed part of the trees' stiffness streams (no episode index reaches it).
@@ -35,6 +39,9 @@ pub struct CollectConfig {
     /// Skip generated trees whose topology repeats an earlier one.
     pub distinct_topologies: bool,
     pub tree_params: ScaParams,
+    /// Which generator grows the trees (SCA unless recorded otherwise).
+    #[serde(default, skip_serializing_if = "is_sca")]
+    pub shape: TreeShape,
     pub pushes: PushDistribution,
     pub contact: ContactModel,
     /// Pushes drawn for one episode before giving up on it.
@@ -54,6 +61,7 @@ impl Default for CollectConfig {
             trees_per_size: 100,
             distinct_topologies: true,
             tree_params: ScaParams::default(),
+            shape: TreeShape::Sca,
             pushes: PushDistribution::default(),
             contact: ContactModel::Slot,
             max_attempts: 1000,
@@ -133,6 +141,7 @@ pub fn collect_size(
         config.trees_per_size,
         tree_base,
         &config.tree_params,
+        config.shape,
         config.distinct_topologies,
         |_, _| {},
     )?;

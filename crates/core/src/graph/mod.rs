@@ -39,6 +39,7 @@
 //! The documentation beside the code: `docs/learning.md`.
 
 pub mod contract;
+pub mod path;
 pub mod stats;
 
 use nalgebra::{Point3, Vector3};
@@ -153,17 +154,6 @@ pub fn rotate_xy(v: &mut [f32], sin: f64, cos: f64) {
     v[1] = (sin * x + cos * y) as f32;
 }
 
-/// The branch joining i and j (either may be the parent): its child node.
-fn joining_branch(tree: &Tree, i: usize, j: usize) -> Option<usize> {
-    if tree.parent(j) == Some(i) {
-        Some(j)
-    } else if tree.parent(i) == Some(j) {
-        Some(i)
-    } else {
-        None
-    }
-}
-
 /// κ_j = ln K_s,j − mean over branches of ln K_s, indexed by node (0 at the
 /// root). Branches with a non-positive or non-finite K_s (which requests
 /// and dataset files never carry: they are validated) count as κ = 0 and
@@ -188,21 +178,51 @@ pub fn log_stiffness_ratios(tree: &Tree) -> Vec<f64> {
 
 /// The edge attributes of a tree at rest: shared by both tasks.
 pub fn edge_attributes(tree: &Tree) -> Vec<f32> {
-    let n = tree.len();
-    let kappa = log_stiffness_ratios(tree);
+    edge_attributes_with(
+        tree.positions(),
+        tree.parents(),
+        &log_stiffness_ratios(tree),
+    )
+}
+
+/// The edge attributes of any rooted graph (positions, parents, and κ of
+/// the branch ending at each node): the one definition behind both
+/// encodings ([`path`] feeds it a path's subgraph).
+pub fn edge_attributes_with(
+    positions: &[Point3<f64>],
+    parents: &[Option<usize>],
+    kappa: &[f64],
+) -> Vec<f32> {
+    let n = positions.len();
+    let is_ancestor = |a: usize, mut j: usize| {
+        while let Some(p) = parents[j] {
+            if p == a {
+                return true;
+            }
+            j = p;
+        }
+        false
+    };
     let mut edges = vec![0.0f32; n * n * EDGE_DIM];
     for i in 0..n {
         for j in 0..n {
             if i == j {
                 continue;
             }
-            let d = tree.position(j) - tree.position(i);
+            let d = positions[j] - positions[i];
             let k = (i * n + j) * EDGE_DIM;
             edges[k] = d.x as f32;
             edges[k + 1] = d.y as f32;
             edges[k + 2] = d.z as f32;
-            edges[k + 3] = tree.orientation(i, j) as f32;
-            if let Some(b) = joining_branch(tree, i, j) {
+            edges[k + 3] = if is_ancestor(i, j) { 1.0 } else { -1.0 };
+            let branch = if parents[j] == Some(i) {
+                Some(j)
+            } else if parents[i] == Some(j) {
+                Some(i)
+            } else {
+                None
+            };
+            if let Some(b) = branch {
                 edges[k + BRANCH_COLUMN] = 1.0;
                 edges[k + LOG_STIFFNESS_COLUMN] = kappa[b] as f32;
             }

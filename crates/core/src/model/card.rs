@@ -8,6 +8,7 @@ use serde_json::Value;
 
 use super::domain::{Domain, Margin};
 use crate::graph::Task;
+use crate::graph::path::Encoding;
 
 /// Everything the exporter records about a model.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -40,6 +41,10 @@ pub struct ModelCard {
     pub units: String,
     /// The trees and pushes the model answers for.
     pub domain: DomainRecord,
+    /// What graph the model reads and what its output means (metadata key
+    /// `encoding`; models exported before it existed read the whole tree).
+    #[serde(default)]
+    pub encoding: Encoding,
 }
 
 /// The dataset a model was trained on, and how to make it again.
@@ -142,6 +147,7 @@ impl ModelCard {
                 };
                 (key.to_owned(), text)
             })
+            .chain([("encoding".to_owned(), self.encoding.name().to_owned())])
             .collect()
     }
 
@@ -179,6 +185,9 @@ impl ModelCard {
             };
             fields.insert(key.to_owned(), value);
         }
+        if let Some((_, text)) = metadata.iter().find(|(k, _)| k == "encoding") {
+            fields.insert("encoding".to_owned(), Value::String(text.clone()));
+        }
         // The error names the field at fault: its top-level key is the
         // metadata key.
         serde_path_to_error::deserialize(Value::Object(fields)).map_err(|e| {
@@ -215,6 +224,7 @@ mod tests {
             stiffness_log_ratio: range(-4.0, 3.0),
             push_length: range(0.025, 0.3),
             nodes: EVALUATED_NODES,
+            encoding: Encoding::Full,
         };
         ModelCard {
             name: "forward_gnn".into(),
@@ -254,6 +264,7 @@ mod tests {
                 margin: Margin::STANDARD,
                 trained_sizes: vec![11, 13],
             },
+            encoding: Encoding::Full,
         }
     }
 
@@ -262,7 +273,8 @@ mod tests {
         let card = card();
         let metadata = card.to_metadata();
         let keys: Vec<&str> = metadata.iter().map(|(k, _)| k.as_str()).collect();
-        assert_eq!(keys, KEYS);
+        assert_eq!(keys[..KEYS.len()], KEYS);
+        assert_eq!(keys[KEYS.len()..], ["encoding"]);
         let text = |key: &str| &metadata.iter().find(|(k, _)| k == key).unwrap().1;
         // Text fields as text, numbers as their digits, documents as JSON.
         assert_eq!(text("git_commit"), "1234567");
@@ -271,6 +283,21 @@ mod tests {
         assert!(text("domain").starts_with('{'));
         assert_eq!(ModelCard::from_metadata(&metadata).unwrap(), card);
         assert!((card.max_push() - 0.3).abs() < 1e-12);
+        // A path model says so; a file from before the key reads as full.
+        let path = ModelCard {
+            encoding: Encoding::Path,
+            ..card.clone()
+        };
+        assert_eq!(ModelCard::from_metadata(&path.to_metadata()).unwrap(), path);
+        let old: Vec<_> = metadata
+            .iter()
+            .filter(|(k, _)| k != "encoding")
+            .cloned()
+            .collect();
+        assert_eq!(
+            ModelCard::from_metadata(&old).unwrap().encoding,
+            Encoding::Full
+        );
     }
 
     #[test]

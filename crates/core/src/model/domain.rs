@@ -22,6 +22,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::graph::log_stiffness_ratios;
+use crate::graph::path::Encoding;
 use crate::tree::Tree;
 
 /// Sizes the paper evaluates on (trained on 11…19, zero-shot to 30).
@@ -81,6 +82,11 @@ pub struct Domain {
     pub push_length: Interval,
     /// Tree sizes evaluated (outside: a warning, not a refusal).
     pub nodes: (usize, usize),
+    /// A path model's domain bounds only what it reads: each branch's
+    /// length and radius. The tree's height and size do not enter its
+    /// graph, and its κ is relative to the path, not the tree.
+    #[serde(default)]
+    pub encoding: Encoding,
 }
 
 /// How far beyond the trained range a domain reaches.
@@ -150,6 +156,7 @@ impl Span {
                 .widened_by(margin.stiffness_ratio_factor.ln()),
             push_length: self.push_length.widened(margin.push_factor),
             nodes,
+            encoding: Encoding::Full,
         }
     }
 }
@@ -210,11 +217,17 @@ impl Domain {
                 });
             }
         };
-        check("tree_height", self.tree_height, tree_height(tree), None);
+        let path = self.encoding == Encoding::Path;
+        if !path {
+            check("tree_height", self.tree_height, tree_height(tree), None);
+        }
         let kappa = log_stiffness_ratios(tree);
         for (j, b) in tree.branches_iter() {
             check("branch_length", self.branch_length, b.length, Some(j));
             check("branch_radius", self.branch_radius, b.radius, Some(j));
+            if path {
+                continue;
+            }
             check(
                 "stiffness_log_ratio",
                 self.stiffness_log_ratio,
@@ -223,7 +236,7 @@ impl Domain {
             );
         }
         let n = tree.len();
-        if n < self.nodes.0 || n > self.nodes.1 {
+        if !path && (n < self.nodes.0 || n > self.nodes.1) {
             out.push(Violation {
                 quantity: "nodes",
                 value: n as f64,

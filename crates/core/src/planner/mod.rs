@@ -27,6 +27,7 @@ pub mod objective;
 mod observed;
 pub mod placed;
 pub mod predict;
+pub mod predictive_policy;
 mod query;
 pub mod refine;
 pub mod search;
@@ -38,6 +39,7 @@ pub use answer::{Attempt, Clearance, Plan, PlanError};
 pub use objective::{Limits, Objective};
 pub use placed::Planner;
 pub use predict::{Candidate, ContactPolicy, PredictError, Predictor};
+pub use predictive_policy::PredictivePolicy;
 pub use query::{
     DEFAULT_CANDIDATES, FIXED_EVALUATION_EDGES, Query, REGION_EVALUATION_EDGES, Stance, Strategy,
     default_evaluations,

@@ -89,7 +89,7 @@ pub fn geometric_seeds(tree: &Tree, objective: &Objective, max: usize) -> Vec<Pu
 /// A push at `contact` along `direction` with the part along the contact
 /// branch removed (a push along a branch cannot be held), its length
 /// `distance` clamped into the trained range.
-fn seed_vector(
+pub(super) fn seed_vector(
     tree: &Tree,
     contact: usize,
     direction: &Vector3<f64>,

@@ -7,7 +7,63 @@ use std::collections::HashSet;
 use serde::{Deserialize, Serialize};
 
 use super::model::Tree;
+use super::orchard::{OrchardParams, generate_orchard};
 use super::sca::{ScaError, ScaParams, generate, tree_seed};
+
+/// Which generator grows a set's trees.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TreeShape {
+    /// Space Colonization, the paper's trees ([`super::sca`]).
+    #[default]
+    Sca,
+    /// A central leader with scaffolds and laterals at the paper's node
+    /// spacing ([`super::orchard`]): the shape of real-sized trees.
+    Orchard,
+    /// Both, alternating by candidate (even: SCA, odd: orchard).
+    Mixed,
+}
+
+impl TreeShape {
+    /// Grows candidate `candidate`'s tree of `n` nodes from `seed`.
+    pub fn generate(
+        self,
+        n: usize,
+        seed: u64,
+        candidate: u64,
+        params: &ScaParams,
+    ) -> Result<Tree, ScaError> {
+        let orchard = match self {
+            TreeShape::Sca => false,
+            TreeShape::Orchard => true,
+            TreeShape::Mixed => candidate % 2 == 1,
+        };
+        if orchard {
+            let p = OrchardParams {
+                tip_radius: params.tip_radius,
+                wood: params.wood,
+                ..OrchardParams::default()
+            };
+            generate_orchard(n, seed, &p)
+        } else {
+            generate(n, seed, params)
+        }
+    }
+}
+
+impl std::str::FromStr for TreeShape {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "sca" => Ok(TreeShape::Sca),
+            "orchard" => Ok(TreeShape::Orchard),
+            "mixed" => Ok(TreeShape::Mixed),
+            other => Err(format!(
+                "unknown tree shape {other:?} (sca, orchard or mixed)"
+            )),
+        }
+    }
+}
 
 /// Most candidate seeds tried per kept tree before giving up on distinct
 /// topologies (the smallest size, N = 10, needs about 5 on average).
@@ -43,6 +99,7 @@ pub fn tree_set(
     count: usize,
     base_seed: u64,
     params: &ScaParams,
+    shape: TreeShape,
     distinct: bool,
     mut on_tree: impl FnMut(&TreeOrigin, &Tree),
 ) -> Result<Vec<(TreeOrigin, Tree)>, CollectionError> {
@@ -54,7 +111,7 @@ pub fn tree_set(
             break;
         }
         let seed = tree_seed(base_seed, n, candidate);
-        let tree = generate(n, seed, params)?;
+        let tree = shape.generate(n, seed, candidate, params)?;
         if distinct && !seen.insert(tree.topology_key()) {
             continue;
         }

@@ -6,13 +6,15 @@
 
 pub mod collection;
 pub mod model;
+pub mod orchard;
 pub mod render;
 pub mod sca;
 pub mod stiffness;
 pub mod urdf;
 pub mod wood;
 
-pub use model::{Branch, MAX_NODES, MIN_NODES, Tree, TreeError};
+pub use model::{Branch, FULL_GRAPH_MAX_NODES, MAX_NODES, MIN_NODES, Tree, TreeError};
+pub use orchard::{OrchardParams, generate_orchard};
 pub use sca::{ScaError, ScaParams, generate, tree_seed};
 pub use stiffness::StiffnessVariation;
 pub use wood::Wood;

@@ -12,14 +12,22 @@
 use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
-/// Largest tree accepted anywhere in treemanip.
+/// Largest tree accepted anywhere in treemanip: a whole young orchard tree
+/// at the paper's node spacing (several hundred joints).
 ///
-/// The learned models run on the *fully connected* graph, whose edge tensors
-/// grow as N². At N = 64 that is 4,032 directed edges, about 18× the edges of
-/// the paper's largest tree (N = 30, 870 edges): one forward pass stays in the
-/// tens of milliseconds on a CPU and in a few MB of activations, so a single
-/// request cannot tie up the server. The paper's trees have 10–30 nodes.
-pub const MAX_NODES: usize = 64;
+/// The simulator, the planner and identification work on the root-to-contact
+/// path and a bounding-volume hierarchy of the branches, so their cost grows
+/// with the path's depth and about linearly in N. The models that read the
+/// *fully connected* graph (the paper's GNN and PointNet, whose edge tensors
+/// grow as N²) declare a smaller limit of their own in their card
+/// ([`FULL_GRAPH_MAX_NODES`]); the path models have none.
+pub const MAX_NODES: usize = 512;
+
+/// Largest tree a model on the fully connected graph is run on: at N = 64
+/// that is 4,032 directed edges, about 5× the paper's largest tree (N = 30,
+/// 870 edges), one forward pass in tens of milliseconds and a few MB of
+/// activations. At 512 nodes it would be 262,000 edges and gigabytes.
+pub const FULL_GRAPH_MAX_NODES: usize = 64;
 
 /// Smallest tree: the fixed root and one branch.
 pub const MIN_NODES: usize = 2;

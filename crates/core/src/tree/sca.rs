@@ -20,12 +20,18 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::model::{MAX_NODES, Tree, TreeError};
+use super::model::{Tree, TreeError};
 use super::wood::Wood;
 
 /// No two nodes of a generated tree are closer than this (m). The physics and
 /// the gripper (a slot about 2 cm wide) need nodes that can be told apart.
 pub const MIN_NODE_SPACING: f64 = 0.03;
+
+/// Largest node count Space Colonization grows. Its segments shrink as
+/// 1/√N to fill the same crown, so past this a tree is a bush of
+/// 2-4 cm branches with nothing of an orchard tree's structure (and the
+/// growth gives up more often); [`super::orchard`] grows larger trees.
+pub const MAX_SCA_NODES: usize = 64;
 
 /// Smallest node count the generator accepts: a root, a trunk node and two
 /// children are needed for a tree that branches.
@@ -175,11 +181,11 @@ pub fn tree_seed(base_seed: u64, n: usize, index: u64) -> u64 {
 
 /// Grows a tree of exactly `n` nodes from `seed`.
 pub fn generate(n: usize, seed: u64, params: &ScaParams) -> Result<Tree, ScaError> {
-    if !(MIN_GENERATED_NODES..=MAX_NODES).contains(&n) {
+    if !(MIN_GENERATED_NODES..=MAX_SCA_NODES).contains(&n) {
         return Err(ScaError::NodeCount {
             got: n,
             min: MIN_GENERATED_NODES,
-            max: MAX_NODES,
+            max: MAX_SCA_NODES,
         });
     }
     params.validate()?;

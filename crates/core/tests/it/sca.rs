@@ -155,14 +155,17 @@ fn sizes_outside_the_range_are_refused() {
         0,
         1,
         MIN_GENERATED_NODES - 1,
-        treemanip_core::tree::MAX_NODES + 1,
+        treemanip_core::tree::sca::MAX_SCA_NODES + 1,
     ] {
         assert!(
             matches!(generate(n, 1, &params), Err(ScaError::NodeCount { got, .. }) if got == n)
         );
     }
     // The extremes that are allowed work.
-    for n in [MIN_GENERATED_NODES, treemanip_core::tree::MAX_NODES] {
+    for n in [
+        MIN_GENERATED_NODES,
+        treemanip_core::tree::sca::MAX_SCA_NODES,
+    ] {
         let tree = generate(n, 3, &params).unwrap();
         assert_eq!(tree.len(), n);
     }

@@ -126,7 +126,7 @@ fn too_few_and_too_many_nodes() {
         .collect();
     let err = Tree::new(positions, parents, branches).unwrap_err();
     assert!(matches!(err, TreeError::NodeCount { got, .. } if got == n));
-    assert!(err.to_string().contains("between 2 and 64"), "{err}");
+    assert!(err.to_string().contains("between 2 and 512"), "{err}");
 }
 
 #[test]

@@ -6,8 +6,10 @@ use serde_json::Value;
 use super::error::ApiError;
 use crate::api::types::Warning;
 use crate::api::types::domain::ViolationJson;
+use treemanip_core::graph::Task;
+use treemanip_core::graph::path::Encoding;
 use treemanip_core::model::domain::Violation;
-use treemanip_core::tree::Tree;
+use treemanip_core::tree::{FULL_GRAPH_MAX_NODES, Tree};
 use treemanip_infer::models::ServedModel;
 
 fn details(v: &Violation, model: &ServedModel) -> ViolationJson {
@@ -25,6 +27,31 @@ fn details_json(v: &Violation, model: &ServedModel) -> Value {
     serde_json::to_value(details(v, model)).unwrap_or(Value::Null)
 }
 
+/// A model on the fully connected graph costs O(N²) in time and memory:
+/// past [`FULL_GRAPH_MAX_NODES`] it is not run at all (413 naming the limit
+/// and the model that has none), `allow_out_of_domain` or not.
+pub fn check_size(model: &ServedModel, tree: &Tree) -> Result<(), ApiError> {
+    let n = tree.len();
+    if model.card.encoding == Encoding::Full && n > FULL_GRAPH_MAX_NODES {
+        let alternative = match model.task {
+            Task::Forward => {
+                "; the forward_path model reads only the push's path and takes any size the server does"
+            }
+            Task::Policy => {
+                "; plan with `strategy: physics` (or a forward_path model), which needs no policy"
+            }
+        };
+        return Err(ApiError::too_large(format!(
+            "the tree has {n} nodes; the {} model reads the fully connected graph and takes at most {FULL_GRAPH_MAX_NODES}{alternative}",
+            model.name
+        ))
+        .with_details(serde_json::json!({
+            "field": "tree", "nodes": n, "max_nodes": FULL_GRAPH_MAX_NODES, "model": model.name,
+        })));
+    }
+    Ok(())
+}
+
 /// Checks `tree` and the forward model's pushes (node, |T|) against
 /// `model`'s domain. A quantity outside it is a 422 `out_of_domain` naming
 /// it, its bound and its node, unless `allow` is set; then it, like every
@@ -35,6 +62,7 @@ pub fn check(
     pushes: &[(usize, f64)],
     allow: bool,
 ) -> Result<Vec<Warning>, ApiError> {
+    check_size(model, tree)?;
     let domain = &model.card.domain.domain;
     let mut violations = domain.check_tree(tree);
     violations.extend(

@@ -23,8 +23,12 @@ use crate::api::types::{
 use treemanip_core::geometry::shape::Shape;
 use treemanip_core::graph::Task;
 use treemanip_core::planner::base::{BasePose, BaseRegion};
-use treemanip_core::planner::{self, Predictor, Query, Stance, Strategy};
+use treemanip_core::planner::predict::PhysicsPredictor;
+use treemanip_core::planner::{
+    self, ContactPolicy, PredictivePolicy, Predictor, Query, Stance, Strategy,
+};
 use treemanip_core::robot::motion::execution::ExecutionOptions;
+use treemanip_core::tree::FULL_GRAPH_MAX_NODES;
 
 /// Obstacles a request may list.
 pub const MAX_OBSTACLES: usize = 64;
@@ -236,7 +240,14 @@ pub async fn plan(
         &tree,
     )?;
     let load_limits = limits(request.limits.as_ref())?;
-    let warnings = domain::check(&policy, &tree, &[], request.allow_out_of_domain)?;
+    // Past the policy GNN's size (it reads the fully connected graph) the
+    // predictor ranks the nodes itself (`planner::PredictivePolicy`).
+    let predictive = tree.len() > FULL_GRAPH_MAX_NODES;
+    let warnings = if predictive {
+        Vec::new()
+    } else {
+        domain::check(&policy, &tree, &[], request.allow_out_of_domain)?
+    };
     let max_ms = state.limits.max_plan_budget.as_secs_f64() * 1e3;
     let budget_ms = request.budget_ms.unwrap_or(max_ms.min(2000.0));
     if !(budget_ms.is_finite() && budget_ms > 0.0 && budget_ms <= max_ms) {
@@ -282,11 +293,12 @@ pub async fn plan(
     let info = ModelInfo::of(&policy, &state);
     let response = state
         .run_blocking("/v1/plan", move || {
-            let plan = planner.plan(
-                &query,
-                &*policy,
-                forward.as_deref().map(|m| m as &dyn Predictor),
-            )?;
+            let forward = forward.as_deref().map(|m| m as &dyn Predictor);
+            let ranking = PredictivePolicy {
+                predictor: forward.unwrap_or(&PhysicsPredictor),
+            };
+            let contact: &dyn ContactPolicy = if predictive { &ranking } else { &*policy };
+            let plan = planner.plan(&query, contact, forward)?;
             Ok(PlanResponse {
                 identification: plan.identification.as_ref().map(IdentifyResponse::from),
                 ..response(plan, planner.robot(), info, warnings)

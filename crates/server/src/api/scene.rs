@@ -22,7 +22,9 @@ use crate::api::types::scene::ExampleQuery;
 use crate::api::types::{
     LinkJson, LinkPosesRequest, LinkPosesResponse, ShapeJson, TreeJson, TreeResponse, UrdfRequest,
 };
-use treemanip_core::tree::sca::{self, MIN_GENERATED_NODES, ScaError, ScaParams};
+use treemanip_core::tree::FULL_GRAPH_MAX_NODES;
+use treemanip_core::tree::collection::TreeShape;
+use treemanip_core::tree::sca::{MIN_GENERATED_NODES, ScaError, ScaParams};
 use treemanip_core::tree::urdf::{UrdfError, from_urdf_str};
 
 /// Configurations one `/v1/robot/link-poses` call may ask for.
@@ -104,10 +106,13 @@ fn example_query(query: Option<&str>, max_nodes: usize) -> Result<(usize, u64), 
     Ok((nodes, seed))
 }
 
-/// A Space Colonization tree from the dataset's generator.
+/// A generated tree: Space Colonization (the paper's trees) up to 64 nodes,
+/// an orchard tree (a central leader with scaffolds and laterals at the
+/// paper's node spacing) above.
 ///
-/// The same generator and parameters as `treemanip trees`; the same `nodes`
-/// and `seed` always give the same tree.
+/// The same generators and parameters as `treemanip trees generate`
+/// (`--shape sca` / `--shape orchard`); the same `nodes` and `seed` always
+/// give the same tree.
 #[utoipa::path(get, path = "/v1/trees/example", tag = "trees",
     params(ExampleQuery),
     responses(
@@ -123,13 +128,20 @@ pub async fn example_tree(
     let (nodes, seed) = example_query(query.as_deref(), state.limits.max_nodes)?;
     state
         .run_blocking("/v1/trees/example", move || {
-            let tree = sca::generate(nodes, seed, &ScaParams::default()).map_err(|e| match e {
-                ScaError::GaveUp { .. } => {
-                    ApiError::invalid_argument(format!("{e}; try another seed"))
-                        .with_details(json!({"field": "seed"}))
-                }
-                e => ApiError::internal(e.to_string()),
-            })?;
+            let shape = if nodes > FULL_GRAPH_MAX_NODES {
+                TreeShape::Orchard
+            } else {
+                TreeShape::Sca
+            };
+            let tree = shape
+                .generate(nodes, seed, 0, &ScaParams::default())
+                .map_err(|e| match e {
+                    ScaError::GaveUp { .. } => {
+                        ApiError::invalid_argument(format!("{e}; try another seed"))
+                            .with_details(json!({"field": "seed"}))
+                    }
+                    e => ApiError::internal(e.to_string()),
+                })?;
             Ok(axum::Json(TreeResponse {
                 nodes: tree.len(),
                 tree: TreeJson::from_tree(&tree),

@@ -125,7 +125,11 @@ impl AppState {
 
     /// The model serving `task`, or 503 naming what is missing.
     pub fn model_for(&self, task: Task) -> Result<ModelRef, ApiError> {
-        self.model_by_name(&format!("{}_gnn", task.name()))
+        let names = treemanip_infer::models::default_name(task);
+        names
+            .iter()
+            .find_map(|name| self.model_by_name(name).ok())
+            .map_or_else(|| self.model_by_name(names[names.len() - 1]), Ok)
     }
 
     /// A loaded model by name, or 503 naming what is missing.

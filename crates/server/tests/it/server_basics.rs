@@ -165,7 +165,7 @@ fn every_error_class_has_its_status_and_shape() {
         (status, body["error"]["code"].as_str()),
         (415, Some("unsupported_media_type"))
     );
-    // 413: a body over 1 MiB, a tree over 64 nodes.
+    // 413: a body over 1 MiB, a tree over 512 nodes.
     let (status, _, body) = server.raw(
         "POST",
         "/v1/simulate",
@@ -179,12 +179,12 @@ fn every_error_class_has_its_status_and_shape() {
         "{body}"
     );
     let big = json!({
-        "positions": (0..65).map(|k| [0.0, 0.0, k as f64 * 0.1]).collect::<Vec<_>>(),
-        "parents": (0..65).map(|k: usize| k.checked_sub(1)).collect::<Vec<_>>(),
-        "radius": (0..65).map(|k| if k == 0 { None } else { Some(0.01) }).collect::<Vec<_>>(),
+        "positions": (0..513).map(|k| [0.0, 0.0, k as f64 * 0.1]).collect::<Vec<_>>(),
+        "parents": (0..513).map(|k: usize| k.checked_sub(1)).collect::<Vec<_>>(),
+        "radius": (0..513).map(|k| if k == 0 { None } else { Some(0.01) }).collect::<Vec<_>>(),
     });
     let error = expect_error(&server, &simulate_body(big), 413, "too_large");
-    assert_eq!(error["details"]["max_nodes"], 64);
+    assert_eq!(error["details"]["max_nodes"], 512);
     // 422: invalid trees, each naming field and node.
     let mut cycle = tree_json();
     cycle["parents"] = json!([null, 2, 1, 1]);

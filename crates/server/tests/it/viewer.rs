@@ -10,7 +10,7 @@ use serde_json::{Value, json};
 use treemanip_core::robot::Arm;
 use treemanip_core::tree::sca::{ScaParams, generate};
 use treemanip_core::tree::urdf::to_urdf_string;
-use treemanip_core::tree::{MAX_NODES, Wood};
+use treemanip_core::tree::{MAX_NODES, OrchardParams, Wood, generate_orchard};
 use treemanip_server::api::types::TreeJson;
 
 use crate::common::server::Server;
@@ -136,7 +136,15 @@ fn examples_are_the_generators_trees() {
     assert_eq!(again, body, "deterministic for a seed");
     let (_, default) = server.get("/v1/trees/example");
     assert_eq!(default["nodes"], 15);
-    for bad in ["?nodes=3", "?nodes=100", "?seed=x", "?size=4"] {
+    // Above the SCA generator's 64 nodes: an orchard tree.
+    let (status, body) = server.get("/v1/trees/example?nodes=300&seed=2");
+    assert_eq!(status, 200, "{body}");
+    let orchard = generate_orchard(300, 2, &OrchardParams::default()).unwrap();
+    assert_eq!(
+        body["tree"],
+        serde_json::to_value(TreeJson::from_tree(&orchard)).unwrap()
+    );
+    for bad in ["?nodes=3", "?nodes=513", "?seed=x", "?size=4"] {
         let (status, body) = server.get(&format!("/v1/trees/example{bad}"));
         assert_eq!(status, 422, "{bad}: {body}");
         assert_eq!(body["error"]["code"], "invalid_argument");

@@ -14,17 +14,17 @@ use crate::api::types::schema::Vec3;
 #[schema(as = Tree)]
 pub struct TreeJson {
     /// Node positions (m).
-    #[schema(value_type = Vec<Vec3>, min_items = 2, max_items = 64)]
+    #[schema(value_type = Vec<Vec3>, min_items = 2, max_items = 512)]
     pub positions: Vec<Vec<f64>>,
     /// Each node's parent (null for the root).
     #[serde(deserialize_with = "crate::api::json::integer::vec_opt_usize")]
-    #[schema(max_items = 64, minimum = 0, maximum = 63)]
+    #[schema(max_items = 512, minimum = 0, maximum = 511)]
     pub parents: Vec<Option<usize>>,
     /// The radius of the branch ending at each node (m).
-    #[schema(max_items = 64)]
+    #[schema(max_items = 512)]
     pub radius: Vec<Option<f64>>,
     /// The stiffness of the branch ending at each node (N·m/rad).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schema(max_items = 64)]
+    #[schema(max_items = 512)]
     pub stiffness: Option<Vec<Option<f64>>>,
 }
