@@ -113,7 +113,7 @@ impl ModelWeights {
                 "gnn{}: {} graph2graph layers, hidden {}, edge attributes {}, {:?} connectivity",
                 match w.config.encoding {
                     Encoding::Full => "",
-                    Encoding::Path => " on the push's path, joint rotations out",
+                    Encoding::Path => " on the push's path and its side branches",
                 },
                 w.config.layers,
                 w.config.hidden,

@@ -17,7 +17,6 @@ use crate::graph::{
 };
 use crate::model::domain::Span;
 use crate::seed::derive_seed;
-use crate::sim::{ContactModel, SimConfig, simulate};
 
 /// Trees whose index in their size file satisfies this are held out for
 /// validation (10 %): validation measures generalisation to unseen trees.
@@ -28,12 +27,9 @@ pub fn is_validation_tree(tree: usize) -> bool {
 /// The episodes of one split, grouped by tree size.
 pub struct Examples {
     pub sizes: Vec<SizeData>,
-    /// What graph the model reads ([`Encoding::Path`]: the push's path,
-    /// learning joint rotations).
+    /// What graph the model reads ([`Encoding::Path`]: the push's path and
+    /// its side branches' first nodes).
     pub encoding: Encoding,
-    /// Path encoding only: each episode's joint rotations (3 per tree node,
-    /// rad), by simulating it again (the files hold final positions).
-    rotations: Vec<Vec<Vec<f32>>>,
     /// (size index, episode index) of the examples in use.
     pub train: Vec<(usize, usize)>,
     pub validation: Vec<(usize, usize)>,
@@ -74,7 +70,6 @@ impl Examples {
     ) -> anyhow::Result<Self> {
         let mut out = Examples {
             encoding,
-            rotations: Vec::new(),
             sizes: Vec::new(),
             train: Vec::new(),
             validation: Vec::new(),
@@ -85,14 +80,7 @@ impl Examples {
                 .map_err(|e| anyhow::anyhow!("reading {}: {e}", path.display()))?;
             let s = out.sizes.len();
             let count = limit.unwrap_or(usize::MAX).min(data.episodes.len());
-            let rotations = match encoding {
-                Encoding::Full => Vec::new(),
-                Encoding::Path => joint_rotations(&data, count),
-            };
             for (e, episode) in data.episodes.iter().enumerate().take(count) {
-                if encoding == Encoding::Path && rotations[e].is_empty() {
-                    continue;
-                }
                 if is_validation_tree(episode.tree) {
                     out.validation.push((s, e));
                 } else {
@@ -100,7 +88,6 @@ impl Examples {
                 }
             }
             out.sizes.push(data);
-            out.rotations.push(rotations);
         }
         anyhow::ensure!(
             !out.train.is_empty(),
@@ -145,8 +132,7 @@ impl Examples {
         .expect("dataset episodes are validated when read")
     }
 
-    /// What the model learns for one example: per graph node, Δp (m) for
-    /// the full encoding, θ (rad) for the path encoding.
+    /// What the model learns for one example: Δp (m) per graph node.
     fn target_rows(&self, id: (usize, usize)) -> Vec<f32> {
         let (data, episode) = self.episode(id);
         match self.encoding {
@@ -159,15 +145,9 @@ impl Examples {
                     [d.x as f32, d.y as f32, d.z as f32]
                 })
                 .collect(),
-            Encoding::Path => {
-                let theta = &self.rotations[id.0][id.1];
-                let graph = self.path_graph(id);
-                let rotations: Vec<Vector3<f64>> = theta
-                    .chunks_exact(3)
-                    .map(|t| Vector3::new(t[0] as f64, t[1] as f64, t[2] as f64))
-                    .collect();
-                graph.rotation_targets(&rotations)
-            }
+            Encoding::Path => self
+                .path_graph(id)
+                .displacement_targets(data.tree_of(episode), &episode.final_positions),
         }
     }
 
@@ -238,13 +218,7 @@ impl Examples {
             match task {
                 Task::Forward => {
                     let rows = self.target_rows(id);
-                    // The path encoding's root and off-path rows are zero
-                    // by construction: only the path's joints count.
-                    let used = match self.encoding {
-                        Encoding::Full => 0..g.n,
-                        Encoding::Path => 1..self.path_graph(id).path_len,
-                    };
-                    for j in used {
+                    for j in 0..g.n {
                         outputs.push(&rows[3 * j..3 * j + 3]);
                     }
                 }
@@ -302,51 +276,6 @@ impl Examples {
         }
         out
     }
-}
-
-/// Each of the first `count` episodes' joint rotations (3 per tree node,
-/// rad), by simulating it again: with the slot contact, else the pinned
-/// one, whichever gives back the recorded final positions (to 1e-6 m). An
-/// episode neither reproduces gets an empty row and is left out.
-fn joint_rotations(data: &SizeData, count: usize) -> Vec<Vec<f32>> {
-    use rayon::prelude::*;
-    let rows: Vec<Vec<f32>> = data.episodes[..count]
-        .par_iter()
-        .map(|episode| {
-            let tree = data.tree_of(episode);
-            [ContactModel::Slot, ContactModel::Pinned]
-                .into_iter()
-                .find_map(|contact| {
-                    let config = SimConfig {
-                        contact,
-                        ..SimConfig::default()
-                    };
-                    let outcome = simulate(tree, &episode.push, &config).ok()?;
-                    let gap = outcome
-                        .final_positions
-                        .iter()
-                        .zip(&episode.final_positions)
-                        .map(|(a, b)| (a - b).norm())
-                        .fold(0.0, f64::max);
-                    (gap < 1e-6).then(|| {
-                        outcome
-                            .joint_rotations
-                            .iter()
-                            .flat_map(|t| [t.x as f32, t.y as f32, t.z as f32])
-                            .collect()
-                    })
-                })
-                .unwrap_or_default()
-        })
-        .collect();
-    let lost = rows.iter().filter(|r| r.is_empty()).count();
-    if lost > 0 {
-        eprintln!(
-            "path encoding: {lost} of {count} episodes of N = {} did not simulate again to their recorded positions; left out",
-            data.n
-        );
-    }
-    rows
 }
 
 /// The span of the training trees (index ≢ 9 mod 10, the validation

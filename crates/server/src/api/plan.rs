@@ -242,6 +242,9 @@ pub async fn plan(
     let load_limits = limits(request.limits.as_ref())?;
     // Past the policy GNN's size (it reads the fully connected graph) the
     // predictor ranks the nodes itself (`planner::PredictivePolicy`).
+    if let Some(forward) = &forward {
+        domain::check_size(forward, &tree)?;
+    }
     let predictive = tree.len() > FULL_GRAPH_MAX_NODES;
     let warnings = if predictive {
         Vec::new()

@@ -102,7 +102,16 @@ pub async fn forward(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<ForwardRequest>,
 ) -> Result<axum::Json<ForwardResponse>, ApiError> {
-    let model = state.model_for(Task::Forward)?;
+    let model = match request.model.as_deref() {
+        None => state.model_for(Task::Forward)?,
+        Some(name) if name.starts_with("forward_") => state.model_by_name(name)?,
+        Some(name) => {
+            return Err(ApiError::invalid_field(
+                "model",
+                format!("`{name}` is not a forward model (forward_path, forward_gnn, ...)"),
+            ));
+        }
+    };
     let tree = request.tree.to_tree(state.limits.max_nodes)?;
     let actions = actions(
         &request,

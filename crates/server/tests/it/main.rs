@@ -11,6 +11,7 @@ mod schemathesis;
 mod server_adversarial;
 mod server_basics;
 mod server_identify;
+mod server_large_trees;
 mod server_robots;
 mod server_scans;
 mod server_tasks;

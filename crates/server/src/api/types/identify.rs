@@ -97,7 +97,7 @@ pub struct ProbeJson {
     pub contact: ContactJson,
     /// One entry per node (m), null where the node was not seen; observed
     /// while the push was held.
-    #[schema(value_type = Vec<Option<Vec3>>, max_items = 64)]
+    #[schema(value_type = Vec<Option<Vec3>>, max_items = 512)]
     pub observed_positions: Vec<Option<Vec<f64>>>,
     /// The force the gripper applied to the branch (N), non-zero, as
     /// `/v1/simulate` reports `contact_force`; a wrist sensor reads the

@@ -16,12 +16,12 @@ pub enum ObjectiveJson {
     /// Move the tree toward target positions.
     Shape {
         /// Where each node should end up (m).
-        #[schema(value_type = Vec<Vec3>, max_items = 64)]
+        #[schema(value_type = Vec<Vec3>, max_items = 512)]
         target_positions: Vec<Vec<f64>>,
         /// One per node, ≥ 0; 0 ignores a node; at least one non-root
         /// node weighted. Residual: the largest weighted node distance.
         #[serde(default)]
-        #[schema(max_items = 64, minimum = 0)]
+        #[schema(max_items = 512, minimum = 0)]
         weights: Option<Vec<f64>>,
     },
     /// Keep every branch `margin` away from every region.

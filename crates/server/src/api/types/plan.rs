@@ -27,7 +27,7 @@ pub struct PlanRequest {
     /// Shorthand for the objective `{"kind": "shape", "target_positions":
     /// ...}`.
     #[serde(default)]
-    #[schema(value_type = Option<Vec<Vec3>>, max_items = 64)]
+    #[schema(value_type = Option<Vec<Vec3>>, max_items = 512)]
     pub target_positions: Option<Vec<Vec<f64>>>,
     #[serde(default)]
     pub limits: Option<LimitsJson>,
@@ -36,7 +36,7 @@ pub struct PlanRequest {
     /// Fixed obstacles in the tree's frame (m), within 5 m of the root;
     /// sizes positive and at most 5 m. A sphere is checked as a ball.
     #[serde(default)]
-    #[schema(max_items = 64)]
+    #[schema(max_items = 512)]
     pub obstacles: Vec<ShapeJson>,
     #[serde(default)]
     pub strategy: StrategyJson,
@@ -47,7 +47,7 @@ pub struct PlanRequest {
     pub budget_ms: Option<f64>,
     /// Policy-ranked nodes searched (default 4, at most N - 1).
     #[serde(default, deserialize_with = "crate::api::json::integer::opt_u64")]
-    #[schema(minimum = 1, maximum = 63)]
+    #[schema(minimum = 1, maximum = 511)]
     pub max_candidates: Option<u64>,
     /// Push predictions allowed (default: by tree size, since a prediction
     /// costs in proportion to N(N-1): from a fixed base 60 at N = 15, 33 at

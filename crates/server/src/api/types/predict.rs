@@ -17,7 +17,7 @@ pub struct ForwardRequest {
     pub tree: TreeJson,
     /// One action: the contacted node (not the root)...
     #[serde(default, deserialize_with = "crate::api::json::integer::opt_usize")]
-    #[schema(minimum = 1, maximum = 63)]
+    #[schema(minimum = 1, maximum = 511)]
     pub contact_node: Option<usize>,
     /// ...and the gripper displacement T (m).
     #[serde(default)]
@@ -25,7 +25,7 @@ pub struct ForwardRequest {
     pub push: Option<Vec<f64>>,
     /// Many actions on the same tree: contact nodes...
     #[serde(default, deserialize_with = "crate::api::json::integer::opt_vec_usize")]
-    #[schema(min_items = 1, max_items = 256, minimum = 1, maximum = 63)]
+    #[schema(min_items = 1, max_items = 256, minimum = 1, maximum = 511)]
     pub contact_nodes: Option<Vec<usize>>,
     /// ...and their pushes, one per contact node (m).
     #[serde(default)]
@@ -43,6 +43,13 @@ pub struct ForwardRequest {
     #[serde(default)]
     #[schema(exclusive_minimum = 0.0)]
     pub timeout_ms: Option<f64>,
+    /// Which forward model answers: `forward_path` (the default where it
+    /// is loaded: it reads the push's path, any tree size) or
+    /// `forward_gnn` (the paper's, on the fully connected graph, at most
+    /// 64 nodes); `GET /v1/models` lists what is loaded.
+    #[serde(default)]
+    #[schema(examples("forward_path", "forward_gnn"))]
+    pub model: Option<String>,
 }
 
 /// One set of per-node values per action, in the request's order.
@@ -66,7 +73,7 @@ pub struct ForwardResponse {
 pub struct PolicyRequest {
     pub tree: TreeJson,
     /// Where each node should end up (m).
-    #[schema(value_type = Vec<Vec3>, max_items = 64)]
+    #[schema(value_type = Vec<Vec3>, max_items = 512)]
     pub target_positions: Vec<Vec<f64>>,
     /// As `/v1/forward`'s.
     #[serde(default)]

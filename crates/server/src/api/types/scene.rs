@@ -21,7 +21,7 @@ pub struct UrdfRequest {
 #[into_params(parameter_in = Query)]
 pub struct ExampleQuery {
     /// Nodes of the tree (at most the server's `--max-nodes`).
-    #[param(minimum = 4, maximum = 64, default = 15)]
+    #[param(minimum = 4, maximum = 512, default = 15)]
     pub nodes: Option<u32>,
     /// The generator's seed: the same `nodes` and `seed` always give the
     /// same tree.

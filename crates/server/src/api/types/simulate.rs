@@ -15,7 +15,7 @@ pub struct SimulateRequest {
     pub tree: TreeJson,
     /// The node the gripper holds (not the root).
     #[serde(deserialize_with = "crate::api::json::integer::usize")]
-    #[schema(minimum = 1, maximum = 63)]
+    #[schema(minimum = 1, maximum = 511)]
     pub contact_node: usize,
     /// Gripper displacement T (m).
     #[schema(value_type = Vec3)]
