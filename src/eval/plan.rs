@@ -14,11 +14,13 @@ use serde::Serialize;
 use crate::dataset::Episode;
 use crate::infer::models::{ServedModel, rank_candidates};
 use crate::planner::base::BaseRegion;
-use crate::planner::predict::max_node_error;
-use crate::planner::{Planner, Query, Stance, Strategy};
+use crate::planner::predict::{PhysicsPredictor, max_node_error};
+use crate::planner::{
+    ContactPolicy, Planner, PredictivePolicy, Predictor, Query, Stance, Strategy,
+};
 use crate::robot::arm::PAPER_BASE;
 use crate::sim::{Push, SimConfig, simulate};
-use crate::tree::Tree;
+use crate::tree::{FULL_GRAPH_MAX_NODES, Tree};
 
 /// One way of planning that is compared.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -115,7 +117,19 @@ pub fn plan_episode(
         query.stance = Stance::Region(evaluation_region());
     }
     let no_action_error = max_node_error(tree.positions(), &targets);
-    let result = planner.plan(&query, policy, Some(forward));
+    // Above the policy GNN's size the predictor ranks the nodes, as the
+    // server does (`planner::PredictivePolicy`).
+    let predictor: &dyn Predictor = match setting.strategy {
+        Strategy::Model => forward,
+        _ => &PhysicsPredictor,
+    };
+    let ranking = PredictivePolicy { predictor };
+    let contact: &dyn ContactPolicy = if tree.len() > FULL_GRAPH_MAX_NODES {
+        &ranking
+    } else {
+        policy
+    };
+    let result = planner.plan(&query, contact, Some(forward));
     let (plan, ms, outcomes) = match result {
         Ok(p) => (
             p.plan,

@@ -19,7 +19,7 @@ use serde::Serialize;
 
 use super::plan::percentile;
 use crate::dataset::{CollectConfig, Episode, SizeData, Split, collect_size};
-use crate::graph::path::Encoding;
+use crate::graph::path::{Encoding, encode_forward_path};
 use crate::infer::batcher::JobControl;
 use crate::infer::models::{ServedModel, predict_displacements};
 use crate::sim::{SimConfig, simulate};
@@ -167,6 +167,31 @@ pub fn no_action_row(shape: TreeShape, data: &SizeData) -> SizeRow {
         .sum();
     SizeRow {
         method: "No Action".to_owned(),
+        shape,
+        n: data.n,
+        episodes: data.episodes.len(),
+        error: sum / data.episodes.len().max(1) as f64,
+        one_push_ms: None,
+        batch_64_ms: None,
+    }
+}
+
+/// The linearised push alone ([`crate::sim::linear`], placed as the path
+/// model places its answers): the path model's starting point.
+pub fn linear_row(shape: TreeShape, data: &SizeData) -> SizeRow {
+    let sum: f64 = data
+        .episodes
+        .iter()
+        .map(|e| {
+            let tree = data.tree_of(e);
+            let graph =
+                encode_forward_path(tree, e.push.node, &e.push.vector).expect("validated episode");
+            let placed = graph.positions(tree, &vec![0.0; 3 * graph.input.n]);
+            max_error(&placed, &e.final_positions)
+        })
+        .sum();
+    SizeRow {
+        method: "Linearised".to_owned(),
         shape,
         n: data.n,
         episodes: data.episodes.len(),

@@ -105,13 +105,21 @@ pub(crate) fn test_episodes(
     per_size: usize,
     seed: u64,
 ) -> anyhow::Result<Vec<treemanip::dataset::SizeData>> {
-    let config = CollectConfig {
-        seed,
-        ..CollectConfig::default()
-    };
     sizes
         .iter()
         .map(|&n| {
+            // The paper's trees where Space Colonization grows them,
+            // orchard trees above.
+            let shape = if n > treemanip::tree::sca::MAX_SCA_NODES {
+                treemanip::tree::collection::TreeShape::Orchard
+            } else {
+                treemanip::tree::collection::TreeShape::Sca
+            };
+            let config = CollectConfig {
+                seed,
+                shape,
+                ..CollectConfig::default()
+            };
             collect_size(Split::Test, n, per_size, &config, &|| {})
                 .map(|(size, _)| size)
                 .with_context(|| format!("simulating test episodes of {n} nodes"))
@@ -136,10 +144,13 @@ pub(crate) fn load_models(dir: &std::path::Path) -> anyhow::Result<ModelSet> {
     Ok(set)
 }
 
+/// The policy GNN and the forward model the server answers with by
+/// default (the path model where it is there).
 pub(crate) fn gnns(set: &ModelSet) -> (&ServedModel, &ServedModel) {
     (
         set.get("policy_gnn").expect("checked on load"),
-        set.get("forward_gnn").expect("checked on load"),
+        set.default_for(treemanip::graph::Task::Forward)
+            .expect("checked on load"),
     )
 }
 

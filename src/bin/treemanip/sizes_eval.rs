@@ -6,7 +6,9 @@ use std::time::Instant;
 
 use clap::Args;
 use treemanip::eval::learned::Score;
-use treemanip::eval::sizes::{SizeRow, model_row, no_action_row, sim_row, test_set, to_markdown};
+use treemanip::eval::sizes::{
+    SizeRow, linear_row, model_row, no_action_row, sim_row, test_set, to_markdown,
+};
 use treemanip::infer::init_backend;
 use treemanip::infer::models::{ServedModel, SessionLayout};
 use treemanip::tree::collection::TreeShape;
@@ -59,11 +61,6 @@ pub fn eval_sizes(args: EvalSizesArgs) -> anyhow::Result<()> {
             ServedModel::load(&path, SessionLayout::shared(cores))?,
         ));
     }
-    anyhow::ensure!(
-        !models.is_empty(),
-        "no forward model in {}",
-        args.models.display()
-    );
     let mut rows: Vec<SizeRow> = Vec::new();
     let mut sims = Vec::new();
     for shape in [TreeShape::Sca, TreeShape::Orchard] {
@@ -83,6 +80,7 @@ pub fn eval_sizes(args: EvalSizesArgs) -> anyhow::Result<()> {
                     rows.push(row);
                 }
             }
+            rows.push(linear_row(shape, &data));
             rows.push(no_action_row(shape, &data));
             sims.push(sim_row(shape, &data));
         }

@@ -30,7 +30,8 @@ use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::{EncodeError, GraphInput, Task, edge_attributes_with};
-use crate::sim::deformed_positions;
+use crate::sim::linear::linear_rotations;
+use crate::sim::{ContactModel, Push, deformed_positions};
 use crate::tree::Tree;
 
 /// What graph a model reads and what its 3-vector output means.
@@ -78,6 +79,9 @@ pub struct PathGraph {
     /// For each side node (graph index ≥ path_len), the graph index of the
     /// path node it hangs from.
     pub hangs_from: Vec<usize>,
+    /// The linearised push's Δp of each graph node (m, 3 per node,
+    /// [`crate::sim::linear`]): the model learns what the push does beyond it.
+    pub prior: Vec<f32>,
     pub input: GraphInput,
 }
 
@@ -167,10 +171,29 @@ pub fn encode_forward_path(
     let edges = edge_attributes_with(&positions, &parents, &kappa);
     let mut node_features = vec![0.0f32; m];
     node_features[path_len - 1] = 1.0;
+    let linear = positions_from_rotations(
+        tree,
+        &linear_rotations(
+            tree,
+            &Push {
+                node: contact,
+                vector: *push,
+            },
+            ContactModel::Slot,
+        ),
+    );
+    let prior = nodes
+        .iter()
+        .flat_map(|&j| {
+            let d = linear[j] - tree.position(j);
+            [d.x as f32, d.y as f32, d.z as f32]
+        })
+        .collect();
     Ok(PathGraph {
         nodes,
         path_len,
         hangs_from,
+        prior,
         input: GraphInput {
             task: Task::Forward,
             n: m,
@@ -182,26 +205,34 @@ pub fn encode_forward_path(
 }
 
 impl PathGraph {
-    /// What a path model learns: Δp (m) of each graph node, from the
-    /// simulated final positions of the whole tree.
+    /// What a path model learns: each graph node's Δp (m) beyond the
+    /// linearised push's, from the simulated final positions of the tree.
     pub fn displacement_targets(&self, tree: &Tree, final_positions: &[Point3<f64>]) -> Vec<f32> {
         self.nodes
             .iter()
-            .flat_map(|&j| {
+            .enumerate()
+            .flat_map(|(k, &j)| {
                 let d = final_positions[j] - tree.position(j);
-                [d.x as f32, d.y as f32, d.z as f32]
+                let p = &self.prior[3 * k..3 * k + 3];
+                [d.x as f32 - p[0], d.y as f32 - p[1], d.z as f32 - p[2]]
             })
             .collect()
     }
 
     /// Final positions of every tree node from a model's Δp per graph node
-    /// (`rows`: 3 numbers per graph node): each path branch turned by the
+    /// beyond the linearised push's (`rows`: 3 numbers per graph node; all
+    /// zero gives the linearised push itself): each path branch turned by the
     /// rotation that best fits its predicted direction and its side
     /// branches' (see the module documentation), everything else rigid.
     pub fn positions(&self, tree: &Tree, rows: &[f32]) -> Vec<Point3<f64>> {
         let predicted = |k: usize| {
-            let r = &rows[3 * k..3 * k + 3];
-            tree.position(self.nodes[k]) + Vector3::new(r[0] as f64, r[1] as f64, r[2] as f64)
+            let (r, p) = (&rows[3 * k..3 * k + 3], &self.prior[3 * k..3 * k + 3]);
+            tree.position(self.nodes[k])
+                + Vector3::new(
+                    (r[0] + p[0]) as f64,
+                    (r[1] + p[1]) as f64,
+                    (r[2] + p[2]) as f64,
+                )
         };
         let mut thetas = Vec::with_capacity(self.path_len);
         let mut parent = Rotation3::identity();
@@ -269,7 +300,7 @@ pub fn positions_from_rotations(tree: &Tree, thetas: &[(usize, Vector3<f64>)]) -
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::{Push, SimConfig, simulate};
+    use crate::sim::{SimConfig, simulate};
     use crate::tree::{OrchardParams, generate_orchard};
 
     #[test]
