@@ -310,6 +310,9 @@ pub(crate) fn dataset_command(config: &serde_json::Value) -> Option<String> {
     if let Some(n) = config["trees_per_size"].as_u64().filter(|n| *n != 100) {
         command += &format!(" --trees-per-size {n}");
     }
+    if let Some(shape) = config["shape"].as_str().filter(|s| *s != "sca") {
+        command += &format!(" --shape {shape}");
+    }
     Some(command)
 }
 

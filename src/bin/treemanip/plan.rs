@@ -144,13 +144,10 @@ pub(crate) fn load_models(dir: &std::path::Path) -> anyhow::Result<ModelSet> {
     Ok(set)
 }
 
-/// The policy GNN and the forward model the server answers with by
-/// default (the path model where it is there).
 pub(crate) fn gnns(set: &ModelSet) -> (&ServedModel, &ServedModel) {
     (
         set.get("policy_gnn").expect("checked on load"),
-        set.default_for(treemanip::graph::Task::Forward)
-            .expect("checked on load"),
+        set.get("forward_gnn").expect("checked on load"),
     )
 }
 
@@ -361,6 +358,8 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
         let results: Vec<EpisodeResult> = episodes
             .iter()
             .map(|&(n, tree, e)| {
+                // The forward model the server answers this size with.
+                let forward = set.forward_for(n).unwrap_or(forward);
                 let r = plan_episode(&planner, policy, forward, n, tree, e, setting);
                 bar.inc(1);
                 r

@@ -82,9 +82,10 @@ pub struct Domain {
     pub push_length: Interval,
     /// Tree sizes evaluated (outside: a warning, not a refusal).
     pub nodes: (usize, usize),
-    /// A path model's domain bounds only what it reads: each branch's
-    /// length and radius. The tree's height and size do not enter its
-    /// graph, and its κ is relative to the path, not the tree.
+    /// A path model's domain bounds only what it reads of the tree: each
+    /// branch's length (its Δp). The tree's height and size do not enter
+    /// its graph, the radius only through K_s, and its κ is relative to
+    /// the pushed path, not the tree.
     #[serde(default)]
     pub encoding: Encoding,
 }
@@ -224,10 +225,10 @@ impl Domain {
         let kappa = log_stiffness_ratios(tree);
         for (j, b) in tree.branches_iter() {
             check("branch_length", self.branch_length, b.length, Some(j));
-            check("branch_radius", self.branch_radius, b.radius, Some(j));
             if path {
                 continue;
             }
+            check("branch_radius", self.branch_radius, b.radius, Some(j));
             check(
                 "stiffness_log_ratio",
                 self.stiffness_log_ratio,

@@ -230,7 +230,7 @@ pub async fn plan(
 ) -> Result<axum::Json<PlanResponse>, ApiError> {
     let policy = state.model_for(Task::Policy)?;
     let forward = match Strategy::from(request.strategy) {
-        Strategy::Model => Some(state.model_for(Task::Forward)?),
+        Strategy::Model => Some(state.forward_model_for(request.tree.positions.len())?),
         _ => None,
     };
     let tree = request.tree.to_tree(state.limits.max_nodes)?;

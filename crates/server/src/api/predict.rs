@@ -102,8 +102,9 @@ pub async fn forward(
     State(state): State<AppState>,
     ApiJson(request): ApiJson<ForwardRequest>,
 ) -> Result<axum::Json<ForwardResponse>, ApiError> {
+    let nodes = request.tree.positions.len();
     let model = match request.model.as_deref() {
-        None => state.model_for(Task::Forward)?,
+        None => state.forward_model_for(nodes)?,
         Some(name) if name.starts_with("forward_") => state.model_by_name(name)?,
         Some(name) => {
             return Err(ApiError::invalid_field(

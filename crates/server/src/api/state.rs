@@ -132,6 +132,20 @@ impl AppState {
             .map_or_else(|| self.model_by_name(names[names.len() - 1]), Ok)
     }
 
+    /// The forward model for a tree of `nodes` nodes
+    /// ([`treemanip_infer::models::ModelSet::forward_for`]).
+    pub fn forward_model_for(&self, nodes: usize) -> Result<ModelRef, ApiError> {
+        let name = self
+            .models
+            .as_ref()
+            .and_then(|set| set.forward_for(nodes))
+            .map(|m| m.name.clone());
+        match name {
+            Some(name) => self.model_by_name(&name),
+            None => self.model_for(Task::Forward),
+        }
+    }
+
     /// A loaded model by name, or 503 naming what is missing.
     pub fn model_by_name(&self, name: &str) -> Result<ModelRef, ApiError> {
         let set = self.models.clone().ok_or_else(|| {

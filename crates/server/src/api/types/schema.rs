@@ -103,7 +103,8 @@ impl ToSchema for Interval {}
 
 /// The models the repository ships (`models/*.onnx`, tested); a
 /// deployment may serve others, which `GET /v1/models` lists.
-pub const SHIPPED_MODELS: [&str; 4] = [
+pub const SHIPPED_MODELS: [&str; 5] = [
+    "forward_path",
     "forward_gnn",
     "policy_gnn",
     "forward_pointnet",
@@ -214,7 +215,14 @@ impl PartialSchema for ModelCard {
             .property("training", training)
             .property("validation", AnyJson::schema())
             .property("units", string())
-            .property("domain", domain);
+            .property("domain", domain)
+            .property(
+                "encoding",
+                string_enum(
+                    &["full", "path"],
+                    Some("What graph the model reads: `full` (the paper's, every node, at most 64) or `path` (the push's path and side branches, any size)."),
+                ),
+            );
         card.into()
     }
 }
