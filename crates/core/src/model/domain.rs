@@ -250,6 +250,34 @@ impl Domain {
         out
     }
 
+    /// A path model's check of the branches a push at `node` moves: each
+    /// one's κ relative to the path's mean (what the model reads), against
+    /// the trained range. Empty for the paper's encoding.
+    pub fn check_path(&self, tree: &Tree, node: usize) -> Vec<Violation> {
+        if self.encoding != Encoding::Path || node == 0 || node >= tree.len() {
+            return Vec::new();
+        }
+        let mut path = tree.path_to_root(node);
+        path.pop();
+        let logs: Vec<f64> = path
+            .iter()
+            .map(|&j| tree.branch(j).map_or(0.0, |b| b.stiffness.ln()))
+            .collect();
+        let mean = logs.iter().sum::<f64>() / logs.len().max(1) as f64;
+        path.iter()
+            .zip(&logs)
+            .filter(|(_, l)| !self.stiffness_log_ratio.contains(*l - mean))
+            .map(|(&j, l)| Violation {
+                quantity: "stiffness_log_ratio",
+                value: l - mean,
+                min: self.stiffness_log_ratio.min,
+                max: self.stiffness_log_ratio.max,
+                node: Some(j),
+                refused: true,
+            })
+            .collect()
+    }
+
     /// A push of `length` (m) at `node`, if outside the domain.
     pub fn check_push(&self, node: usize, length: f64) -> Option<Violation> {
         (!self.push_length.contains(length)).then_some(Violation {

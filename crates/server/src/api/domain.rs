@@ -70,6 +70,12 @@ pub fn check(
             .iter()
             .filter_map(|&(node, length)| domain.check_push(node, length)),
     );
+    let mut nodes: Vec<usize> = pushes.iter().map(|&(node, _)| node).collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    for node in nodes {
+        violations.extend(domain.check_path(tree, node));
+    }
     if !allow && let Some(v) = violations.iter().find(|v| v.refused) {
         let all: Vec<Value> = violations
             .iter()

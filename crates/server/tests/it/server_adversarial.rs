@@ -221,8 +221,13 @@ fn sizes_at_and_over_the_node_limit() {
         &generate(40, 3, &ScaParams::default()).unwrap(),
     ))
     .unwrap();
-    // 40 nodes: answered, with a warning (the models are evaluated on 10–30).
+    // 40 nodes: answered by the path model by default; the paper's GNN,
+    // asked by name, answers with a warning (it is evaluated on 10–30).
     let mut body = json!({"tree": at_limit, "contact_node": 5, "push": [0.05, 0, 0]});
+    let (status, answer) = server.json("POST", "/v1/forward", &body);
+    assert_eq!(status, 200, "{answer}");
+    assert_eq!(answer["model"]["name"], "forward_path");
+    body["model"] = json!("forward_gnn");
     let (status, answer) = server.json("POST", "/v1/forward", &body);
     assert_eq!(status, 200, "{answer}");
     assert!(

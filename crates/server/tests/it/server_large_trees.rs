@@ -90,6 +90,30 @@ fn simulate_and_forward_on_a_500_node_tree() {
         );
     }
 
+    // A path branch 10^20 times stiffer than the rest: outside what the path
+    // model read in training, refused naming the branch.
+    let mut stiff = body.clone();
+    let mut stiffness: Vec<Value> = (0..500)
+        .map(|j| json!(tree.branch(j).map(|b| b.stiffness)))
+        .collect();
+    stiffness[first] = json!(1e25);
+    stiff["tree"]["stiffness"] = json!(stiffness);
+    let (status, e) = server.json("POST", "/v1/forward", &stiff);
+    assert_eq!(status, 422, "{e}");
+    assert_eq!(
+        e["error"]["details"]["quantity"], "stiffness_log_ratio",
+        "{e}"
+    );
+    // (It moves the path's mean too: every other path branch is out as well.)
+    assert!(
+        e["error"]["details"]["violations"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|v| v["node"] == first),
+        "{e}"
+    );
+
     // The paper's GNN reads the fully connected graph: refused by name.
     let mut gnn = body.clone();
     gnn["model"] = json!("forward_gnn");
