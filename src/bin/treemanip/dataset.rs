@@ -56,7 +56,9 @@ pub struct CollectArgs {
     #[arg(long, default_value = "slot")]
     contact: ContactModel,
     /// Tree shape: `sca` (the paper's), `orchard` (leader, scaffolds and
-    /// laterals at the paper's spacing) or `mixed` (both, alternating).
+    /// laterals at the paper's spacing), `mixed` (both, alternating),
+    /// `crop` (N nodes cut around one deep path of a 100-500-node orchard
+    /// tree) or `all` (the three in turn).
     #[arg(long, default_value = "sca")]
     shape: TreeShape,
     /// Vary each branch's stiffness away from the radius formula by a

@@ -51,7 +51,8 @@ pub struct GenerateArgs {
     allow_duplicate_topologies: bool,
     /// Tree shape: `sca` (Space Colonization, the paper's 10-30 node
     /// trees), `orchard` (a central leader with scaffolds and laterals at
-    /// the paper's node spacing, for 50-500 nodes) or `mixed`.
+    /// the paper's node spacing, for 50-500 nodes), `mixed` (both), `crop`
+    /// (cut around one deep path of a 100-500-node orchard tree) or `all`.
     #[arg(long, default_value = "sca")]
     shape: TreeShape,
 }

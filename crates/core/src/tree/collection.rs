@@ -7,6 +7,7 @@ use std::collections::HashSet;
 use serde::{Deserialize, Serialize};
 
 use super::model::Tree;
+use super::crop::generate_crop;
 use super::orchard::{OrchardParams, generate_orchard};
 use super::sca::{ScaError, ScaParams, generate, tree_seed};
 
@@ -22,6 +23,11 @@ pub enum TreeShape {
     Orchard,
     /// Both, alternating by candidate (even: SCA, odd: orchard).
     Mixed,
+    /// N nodes cut from a 100-500-node orchard tree around one deep path
+    /// ([`super::crop`]): small trees with the path depths of large ones.
+    Crop,
+    /// SCA, orchard and crop in turn by candidate (candidate mod 3).
+    All,
 }
 
 impl TreeShape {
@@ -33,20 +39,22 @@ impl TreeShape {
         candidate: u64,
         params: &ScaParams,
     ) -> Result<Tree, ScaError> {
-        let orchard = match self {
-            TreeShape::Sca => false,
-            TreeShape::Orchard => true,
-            TreeShape::Mixed => candidate % 2 == 1,
+        let shape = match self {
+            TreeShape::Mixed => [TreeShape::Sca, TreeShape::Orchard][candidate as usize % 2],
+            TreeShape::All => {
+                [TreeShape::Sca, TreeShape::Orchard, TreeShape::Crop][candidate as usize % 3]
+            }
+            one => one,
         };
-        if orchard {
-            let p = OrchardParams {
-                tip_radius: params.tip_radius,
-                wood: params.wood,
-                ..OrchardParams::default()
-            };
-            generate_orchard(n, seed, &p)
-        } else {
-            generate(n, seed, params)
+        let orchard = OrchardParams {
+            tip_radius: params.tip_radius,
+            wood: params.wood,
+            ..OrchardParams::default()
+        };
+        match shape {
+            TreeShape::Orchard => generate_orchard(n, seed, &orchard),
+            TreeShape::Crop => generate_crop(n, seed, &orchard),
+            _ => generate(n, seed, params),
         }
     }
 }
@@ -58,8 +66,10 @@ impl std::str::FromStr for TreeShape {
             "sca" => Ok(TreeShape::Sca),
             "orchard" => Ok(TreeShape::Orchard),
             "mixed" => Ok(TreeShape::Mixed),
+            "crop" => Ok(TreeShape::Crop),
+            "all" => Ok(TreeShape::All),
             other => Err(format!(
-                "unknown tree shape {other:?} (sca, orchard or mixed)"
+                "unknown tree shape {other:?} (sca, orchard, mixed, crop or all)"
             )),
         }
     }

@@ -5,6 +5,7 @@
 //! The documentation beside the code: `docs/trees.md`.
 
 pub mod collection;
+pub mod crop;
 pub mod model;
 pub mod orchard;
 pub mod render;

@@ -22,6 +22,7 @@ mod sim_convergence;
 mod sim_loads;
 mod sim_physics;
 mod sim_reference;
+mod tree_crop;
 mod tree_model;
 mod urdf_python;
 mod urdf_roundtrip;
