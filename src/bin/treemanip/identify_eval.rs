@@ -25,6 +25,9 @@ pub struct EvalIdentifyArgs {
     trees_per_size: usize,
     #[arg(long, default_value = "docs/results")]
     out: PathBuf,
+    /// File stem of the report in `--out` (`NAME.md`, `.json`, `.svg`).
+    #[arg(long, default_value = "identify")]
+    name: String,
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Models for the closed-loop study (`policy_gnn.onnx`, `forward_gnn.onnx`).
@@ -99,23 +102,40 @@ pub fn eval_identify(args: EvalIdentifyArgs) -> anyhow::Result<()> {
         }
     }
     std::fs::create_dir_all(&args.out)?;
+    let sizes_arg = args
+        .sizes
+        .0
+        .iter()
+        .map(|n| n.to_string())
+        .collect::<Vec<_>>()
+        .join(",");
     let md = format!(
-        "# Stiffness identification (`treemanip eval identify`)\n\n{} test-split trees (sizes {:?}, {} each, from `{}`), hidden stiffness K = K_formula·e^ε (every second tree also × a global factor log-uniform in [1/4, 4]); slot contact; seed {}. Regenerate: `treemanip eval identify --data DIR --seed {}` with DIR from `treemanip dataset collect --out DIR --seed 7`.\n\nRatio errors are |ln K̂/K| after removing the common level (mean over the identified branches), on `identified` branches; level errors (with force) are absolute. Coverage: the 90 % intervals of probed branches. Held-out: 5 random paper-style pushes per tree simulated with the estimate and with the radius formula, mean of the largest node error.\n\n{table}",
+        "# Stiffness identification (`treemanip eval identify`)\n\n{} test-split trees (sizes {:?}, {} each, from `{}`), hidden stiffness K = K_formula·e^ε (every second tree also × a global factor log-uniform in [1/4, 4]); slot contact; seed {}. Regenerate: `treemanip eval identify --data DIR --sizes {} --trees-per-size {} --seed {}` with DIR from `{}`.\n\nRatio errors are |ln K̂/K| after removing the common level (mean over the identified branches), on `identified` branches; level errors (with force) are absolute. Coverage: the 90 % intervals of probed branches. Held-out: 5 random paper-style pushes per tree simulated with the estimate and with the radius formula, mean of the largest node error.\n\n{table}",
         trees.len(),
         args.sizes.0,
         args.trees_per_size,
         args.data.display(),
         args.seed,
-        args.seed
+        sizes_arg,
+        args.trees_per_size,
+        args.seed,
+        crate::learn::dataset_config(&args.data)
+            .as_ref()
+            .and_then(crate::learn::dataset_command)
+            .unwrap_or_else(|| "treemanip dataset collect --out DIR --seed 7".into())
+            + &format!(" --test-sizes {sizes_arg}"),
     );
-    let md_path = args.out.join("identify.md");
+    let md_path = args.out.join(format!("{}.md", args.name));
     std::fs::write(&md_path, md).with_context(|| format!("writing {}", md_path.display()))?;
     std::fs::write(
-        args.out.join("identify.json"),
+        args.out.join(format!("{}.json", args.name)),
         serde_json::to_string_pretty(&results)?,
     )?;
-    treemanip::eval::plots::identify_probes_svg(&results, &args.out.join("identify.svg"))
-        .map_err(|e| anyhow::anyhow!("drawing identify.svg: {e}"))?;
+    treemanip::eval::plots::identify_probes_svg(
+        &results,
+        &args.out.join(format!("{}.svg", args.name)),
+    )
+    .map_err(|e| anyhow::anyhow!("drawing {}.svg: {e}", args.name))?;
     eprintln!("wrote {}", md_path.display());
     Ok(())
 }

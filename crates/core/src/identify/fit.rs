@@ -406,15 +406,26 @@ impl<'a> Observed<'a> {
     }
 }
 
-/// The whitened residual Jacobian of one probe at x (`None` when the
-/// probe does not simulate there, or its hold switches).
-pub(super) fn probe_jacobian(
+/// What one probe at x tells about the stiffnesses: JᵀJ of its whitened
+/// residual Jacobian, which is zero outside the joints on the pushed node's
+/// path (the only joints a push bends), so it is kept on those alone.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct PathInformation {
+    /// Branch indices b of the path's joints.
+    pub joints: Vec<usize>,
+    /// JᵀJ restricted to `joints` (k × k).
+    pub matrix: DMatrix<f64>,
+}
+
+/// The information of one probe at x (`None` when the probe does not
+/// simulate there, or its hold switches).
+pub(super) fn probe_information(
     tree: &Tree,
     x: &DVector<f64>,
     probe: &Probe,
     config: &IdentifyConfig,
     count: &AtomicUsize,
-) -> Option<DMatrix<f64>> {
+) -> Option<PathInformation> {
     let observed = [Observed::new(0, probe, tree)];
     let out = observed[0].simulate(&tree_at(tree, x), None, count).ok()?;
     let state = State {
@@ -423,7 +434,11 @@ pub(super) fn probe_jacobian(
         outcomes: vec![out],
         cost: 0.0,
     };
-    Some(jacobian(tree, &observed, &state, config, count))
+    let jac = jacobian(tree, &observed, &state, config, count).select_columns(&observed[0].path);
+    Some(PathInformation {
+        matrix: jac.transpose() * jac,
+        joints: observed[0].path.clone(),
+    })
 }
 
 /// A probe's simulated outcome on `tree`, for callers that synthesise

@@ -2,8 +2,9 @@
 //! estimate is for, predicting the pushes a planner will make.
 //!
 //! Candidates are pushes at the tree's leaves (the longest lever on every
-//! joint of their path), in four directions perpendicular to the leaf's
-//! branch, of a fixed length (shortened once when the simulator cannot
+//! joint of their path; on a large tree as many leaves as
+//! [`DESIGN_SIMULATIONS`] allows, those covering most joints first), in
+//! four directions perpendicular to the leaf's branch, of a fixed length (shortened once when the simulator cannot
 //! realise it), and a sample of the paper's push distribution
 //! ([`PushDistribution`], nodes uniform). Under the linearised model at the
 //! current estimate, with H the posterior precision of x = ln K_s and J a
@@ -12,7 +13,9 @@
 //! (V-optimal design):
 //!
 //! tr(A H⁻¹) − tr(A (H + JᵀJ)⁻¹),  A = the mean JₕᵀJₕ over [`TARGET_PUSHES`]
-//! pushes drawn from that distribution.
+//! pushes drawn from that distribution. A push bends only its path's k
+//! joints, so JᵀJ is kept on those and each candidate is scored in O(k³)
+//! (Woodbury), not by inverting the p × p precision again.
 //!
 //! A design that only maximised the information about x (D-optimal,
 //! ½ ln det(H + JᵀJ)/det H) spends probes on the stiffness of twigs that
@@ -23,14 +26,14 @@
 //! invisible in positions, so the gains are about ratios; a force measured
 //! with any probe fixes the level.
 
-use std::sync::atomic::AtomicUsize;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nalgebra::{DMatrix, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use super::fit::Posterior;
+use super::fit::{PathInformation, Posterior, probe_information};
 use super::{IdentifyConfig, Probe};
 use crate::sim::sampling::PushDistribution;
 use crate::sim::{ContactModel, Push};
@@ -89,11 +92,80 @@ fn directions(tree: &Tree, node: usize) -> [Vector3<f64>; 4] {
     [u, -u, w, -w]
 }
 
-/// ln det of a symmetric positive definite matrix (−∞ when it is not).
-fn log_det(m: &DMatrix<f64>) -> f64 {
-    m.clone().cholesky().map_or(f64::NEG_INFINITY, |c| {
-        2.0 * c.l().diagonal().iter().map(|v| v.ln()).sum::<f64>()
-    })
+/// Most simulations the candidates' Jacobians may take in one design. A
+/// candidate costs its path's depth + 1 (finite differences along the
+/// path), so on a 500-node tree every leaf's four pushes would take about
+/// 12,000 simulations; the budget bounds one design to about 1,500
+/// whatever the tree's size (a few seconds at 500 nodes on 2 cores). The
+/// paper's trees (10-30 nodes) stay well within it: every leaf is a
+/// candidate there.
+pub const DESIGN_SIMULATIONS: usize = 1500;
+
+/// Leaves in the order they join the candidates: each next the one whose
+/// path bends most joints no earlier leaf's path bends (greedy set cover;
+/// ties to the deeper leaf), so a budget that admits only some leaves
+/// still reaches every part of the tree it can.
+fn leaves_by_coverage(tree: &Tree) -> Vec<usize> {
+    let mut leaves: Vec<(usize, Vec<usize>)> = (1..tree.len())
+        .filter(|&j| tree.is_leaf(j))
+        .map(|j| (j, tree.path_to_root(j)))
+        .collect();
+    let mut covered = vec![false; tree.len()];
+    let mut order = Vec::with_capacity(leaves.len());
+    while !leaves.is_empty() {
+        let (k, _) = leaves
+            .iter()
+            .enumerate()
+            .map(|(k, (leaf, path))| {
+                let new = path.iter().filter(|&&j| !covered[j]).count();
+                (k, (new, path.len(), usize::MAX - leaf))
+            })
+            .max_by_key(|(_, key)| *key)
+            .expect("not empty");
+        let (leaf, path) = leaves.swap_remove(k);
+        for j in path {
+            covered[j] = true;
+        }
+        order.push(leaf);
+    }
+    order
+}
+
+/// The posterior-precision increment of a probe, on its path's joints.
+struct Candidate {
+    push: Push,
+    info: PathInformation,
+}
+
+impl Candidate {
+    /// Adds the increment to a full p × p precision.
+    fn add_to(&self, h: &mut DMatrix<f64>) {
+        for (a, &i) in self.info.joints.iter().enumerate() {
+            for (b, &j) in self.info.joints.iter().enumerate() {
+                h[(i, j)] += self.info.matrix[(a, b)];
+            }
+        }
+    }
+
+    /// (variance removed, information gain) given the current covariance
+    /// Σ = H⁻¹ and M = Σ A Σ. With E selecting the path's joints and I the
+    /// increment there, Woodbury and the matrix determinant lemma give, for
+    /// S = Id + EᵀΣE I (k × k):
+    ///   tr(A H⁻¹) − tr(A (H + E I Eᵀ)⁻¹) = tr(S⁻¹ EᵀME I),
+    ///   ½ ln det(H + E I Eᵀ) − ½ ln det H = ½ ln det S,
+    /// so scoring a candidate costs O(k³), not the O(p³) of a new inverse.
+    fn score(&self, sigma: &DMatrix<f64>, m: &DMatrix<f64>) -> (f64, f64) {
+        let joints = &self.info.joints;
+        let k = joints.len();
+        let pick = |x: &DMatrix<f64>| DMatrix::from_fn(k, k, |a, b| x[(joints[a], joints[b])]);
+        let s = DMatrix::identity(k, k) + pick(sigma) * &self.info.matrix;
+        let rhs = pick(m) * &self.info.matrix;
+        let lu = s.lu();
+        let reduction = lu.solve(&rhs).map_or(0.0, |x| x.trace());
+        let det = lu.determinant();
+        let gain = if det > 0.0 { 0.5 * det.ln() } else { 0.0 };
+        (reduction, gain)
+    }
 }
 
 /// Up to `request.count` probes for `tree` given `posterior` (the prior,
@@ -107,21 +179,21 @@ pub fn choose_probes(
     allowed: &(dyn Fn(&Push) -> bool + Sync),
 ) -> Vec<ProposedProbe> {
     let count = AtomicUsize::new(0);
-    let jacobian_info = |push: Push| -> Option<DMatrix<f64>> {
+    let information = |push: Push| -> Option<Candidate> {
         let probe = Probe {
             push,
             contact: request.contact,
             observed: tree.positions().iter().map(|p| Some(*p)).collect(),
             contact_force: None,
         };
-        let jac = super::fit::probe_jacobian(tree, &posterior.mean, &probe, config, &count)?;
-        Some(jac.transpose() * jac)
+        let info = probe_information(tree, &posterior.mean, &probe, config, &count)?;
+        Some(Candidate { push, info })
     };
     // The first TARGET_PUSHES of at most three times as many draws that
     // simulate, their Jacobians computed a batch at a time (as many as are
     // still missing) rather than for every draw up front.
     let mut rng = ChaCha8Rng::seed_from_u64(TARGET_SEED);
-    let mut targets: Vec<(Push, DMatrix<f64>)> = Vec::with_capacity(TARGET_PUSHES);
+    let mut targets: Vec<Candidate> = Vec::with_capacity(TARGET_PUSHES);
     let mut drawn = 0;
     while targets.len() < TARGET_PUSHES && drawn < TARGET_PUSHES * 3 {
         let take = (TARGET_PUSHES - targets.len()).min(TARGET_PUSHES * 3 - drawn);
@@ -132,19 +204,30 @@ pub fn choose_probes(
         targets.extend(
             batch
                 .par_iter()
-                .filter_map(|&p| jacobian_info(p).map(|info| (p, info)))
+                .filter_map(|&p| information(p))
                 .collect::<Vec<_>>(),
         );
     }
     let p = posterior.mean.len();
     // A: where predictions are sensitive to ln K, weighted by how often
     // the paper's pushes bend each path.
-    let weight = targets
-        .iter()
-        .fold(DMatrix::zeros(p, p), |a, (_, info)| a + info)
-        / targets.len().max(1) as f64;
-    let leaves: Vec<usize> = (1..tree.len()).filter(|&j| tree.is_leaf(j)).collect();
-    let leaf_pushes: Vec<(Push, DMatrix<f64>)> = leaves
+    let mut weight = DMatrix::zeros(p, p);
+    for t in &targets {
+        t.add_to(&mut weight);
+    }
+    weight /= targets.len().max(1) as f64;
+    // Leaves within the simulation budget, in the order that covers most.
+    let mut budget = DESIGN_SIMULATIONS.saturating_sub(count.load(Ordering::Relaxed));
+    let leaves: Vec<usize> = leaves_by_coverage(tree)
+        .into_iter()
+        .take_while(|&leaf| {
+            let cost = 4 * (tree.depth(leaf) + 1);
+            let fits = cost <= budget;
+            budget = budget.saturating_sub(cost);
+            fits
+        })
+        .collect();
+    let leaf_pushes: Vec<Candidate> = leaves
         .par_iter()
         .flat_map_iter(|&node| directions(tree, node).map(|d| (node, d)))
         .filter_map(|(node, d)| {
@@ -156,44 +239,150 @@ pub fn choose_probes(
                 if !allowed(&push) {
                     return None;
                 }
-                jacobian_info(push).map(|info| (push, info))
+                information(push)
             })
         })
         .collect();
-    let candidates: Vec<(Push, DMatrix<f64>)> = leaf_pushes
+    let candidates: Vec<Candidate> = leaf_pushes
         .into_iter()
-        .chain(targets.into_iter().filter(|(push, _)| allowed(push)))
+        .chain(targets.into_iter().filter(|t| allowed(&t.push)))
         .collect();
     let mut precision = posterior
         .covariance
         .clone()
         .try_inverse()
         .unwrap_or_else(|| posterior.prior_precision.clone());
-    let variance = |h: &DMatrix<f64>| {
-        h.clone()
-            .cholesky()
-            .map_or(f64::INFINITY, |c| (&weight * c.inverse()).trace())
-    };
     let mut chosen = Vec::new();
     let mut used = vec![false; candidates.len()];
     for _ in 0..request.count {
-        let base = variance(&precision);
+        let Some(sigma) = precision.clone().cholesky().map(|c| c.inverse()) else {
+            break;
+        };
+        let m = &sigma * &weight * &sigma;
         let best = candidates
-            .iter()
+            .par_iter()
             .enumerate()
             .filter(|(k, _)| !used[*k])
-            .map(|(k, (_, info))| (k, base - variance(&(&precision + info))))
-            .max_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((k, reduction)) = best else { break };
+            .map(|(k, c)| (k, c.score(&sigma, &m)))
+            .max_by(|a, b| a.1.0.total_cmp(&b.1.0).then(b.0.cmp(&a.0)));
+        let Some((k, (reduction, gain))) = best else {
+            break;
+        };
         used[k] = true;
-        let gain = 0.5 * (log_det(&(&precision + &candidates[k].1)) - log_det(&precision));
-        precision += &candidates[k].1;
+        candidates[k].add_to(&mut precision);
         chosen.push(ProposedProbe {
-            push: candidates[k].0,
+            push: candidates[k].push,
             contact: request.contact,
             information_gain: gain,
             prediction_variance_reduction: reduction * config.noise.position.powi(2),
         });
     }
     chosen
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tree::{OrchardParams, generate_orchard};
+
+    /// ln det of a symmetric positive definite matrix.
+    fn log_det(m: &DMatrix<f64>) -> f64 {
+        let c = m.clone().cholesky().unwrap();
+        2.0 * c.l().diagonal().iter().map(|v| v.ln()).sum::<f64>()
+    }
+
+    fn spd(p: usize, seed: u64) -> DMatrix<f64> {
+        use rand::RngExt;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let x = DMatrix::from_fn(p + 3, p, |_, _| rng.random_range(-1.0..1.0));
+        x.transpose() * x + DMatrix::identity(p, p) * 0.1
+    }
+
+    /// The O(k³) score is the O(p³) definition: the variance removed from
+    /// A-weighted predictions and the information gain, for an increment
+    /// on a few joints of a larger precision, singular increments included.
+    #[test]
+    fn the_woodbury_score_is_the_direct_one() {
+        let p = 12;
+        let h = spd(p, 1);
+        let a = spd(p, 2);
+        let joints = vec![7, 2, 9];
+        let j = DMatrix::from_fn(2, 3, |r, c| (r as f64 + 1.0) * (c as f64 - 0.7));
+        let candidate = Candidate {
+            push: Push {
+                node: 1,
+                vector: Vector3::x(),
+            },
+            info: PathInformation {
+                joints: joints.clone(),
+                matrix: j.transpose() * j, // rank 2 of 3
+            },
+        };
+        let sigma = h.clone().try_inverse().unwrap();
+        let m = &sigma * &a * &sigma;
+        let (reduction, gain) = candidate.score(&sigma, &m);
+        let mut updated = h.clone();
+        candidate.add_to(&mut updated);
+        let direct = (&a * &sigma).trace() - (&a * updated.clone().try_inverse().unwrap()).trace();
+        assert!(
+            (reduction - direct).abs() < 1e-9 * direct.abs().max(1.0),
+            "{reduction} {direct}"
+        );
+        let direct_gain = 0.5 * (log_det(&updated) - log_det(&h));
+        assert!((gain - direct_gain).abs() < 1e-9, "{gain} {direct_gain}");
+        assert!(reduction > 0.0 && gain > 0.0);
+    }
+
+    /// Leaves join in the order that bends most new joints: the first is
+    /// the deepest, and the first few cover every scaffold of an orchard
+    /// tree before any scaffold gets a second leaf.
+    #[test]
+    fn leaves_join_by_coverage() {
+        let tree = generate_orchard(300, 5, &OrchardParams::default()).unwrap();
+        let order = leaves_by_coverage(&tree);
+        let leaves = (1..tree.len()).filter(|&j| tree.is_leaf(j)).count();
+        assert_eq!(order.len(), leaves);
+        let deepest = (1..tree.len()).map(|j| tree.depth(j)).max().unwrap();
+        assert_eq!(tree.depth(order[0]), deepest);
+        // New joints per leaf never increase along the order.
+        let mut covered = vec![false; tree.len()];
+        let mut last = usize::MAX;
+        for &leaf in &order {
+            let path = tree.path_to_root(leaf);
+            let new = path.iter().filter(|&&j| !covered[j]).count();
+            assert!(new <= last, "{new} after {last}");
+            last = new;
+            for j in path {
+                covered[j] = true;
+            }
+        }
+        assert!(
+            covered.iter().all(|&c| c),
+            "every node is on some leaf's path"
+        );
+    }
+
+    /// A 300-node tree's design stays within the simulation budget and
+    /// still spreads its probes over the tree.
+    #[test]
+    fn a_large_trees_design_is_bounded() {
+        let tree = generate_orchard(300, 2, &OrchardParams::default()).unwrap();
+        let config = IdentifyConfig::default();
+        let prior = Posterior::prior(&tree, &config);
+        let leaves = (1..tree.len()).filter(|&j| tree.is_leaf(j)).count();
+        let chosen = choose_probes(&tree, &prior, &ProbeRequest::default(), &config, &|_| true);
+        assert_eq!(chosen.len(), 5);
+        let nodes: std::collections::HashSet<usize> = chosen.iter().map(|c| c.push.node).collect();
+        assert!(nodes.len() >= 4, "{nodes:?}");
+        assert!(chosen.iter().all(|c| c.prediction_variance_reduction > 0.0));
+        // Every leaf's four pushes would take this many simulations.
+        let all: usize = (1..tree.len())
+            .filter(|&j| tree.is_leaf(j))
+            .map(|j| 4 * (tree.depth(j) + 1))
+            .sum();
+        assert!(
+            all > 2 * DESIGN_SIMULATIONS,
+            "{leaves} leaves, {all} simulations"
+        );
+    }
 }

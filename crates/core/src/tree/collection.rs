@@ -6,8 +6,8 @@ use std::collections::HashSet;
 
 use serde::{Deserialize, Serialize};
 
-use super::model::Tree;
 use super::crop::generate_crop;
+use super::model::Tree;
 use super::orchard::{OrchardParams, generate_orchard};
 use super::sca::{ScaError, ScaParams, generate, tree_seed};
 
