@@ -23,8 +23,8 @@ use crate::graph::path::{Encoding, encode_forward_path};
 use crate::infer::batcher::JobControl;
 use crate::infer::models::{ServedModel, predict_displacements};
 use crate::sim::{SimConfig, simulate};
-use crate::tree::FULL_GRAPH_MAX_NODES;
 use crate::tree::collection::TreeShape;
+use crate::tree::{FULL_GRAPH_MAX_NODES, Tree};
 
 /// One (model or No Action, shape, size) row.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -160,38 +160,36 @@ pub fn model_row(
 
 /// No Action: the tree left as it is.
 pub fn no_action_row(shape: TreeShape, data: &SizeData) -> SizeRow {
-    let sum: f64 = data
-        .episodes
-        .iter()
-        .map(|e| max_error(data.tree_of(e).positions(), &e.final_positions))
-        .sum();
-    SizeRow {
-        method: "No Action".to_owned(),
-        shape,
-        n: data.n,
-        episodes: data.episodes.len(),
-        error: sum / data.episodes.len().max(1) as f64,
-        one_push_ms: None,
-        batch_64_ms: None,
-    }
+    baseline_row("No Action", shape, data, |tree, _| {
+        tree.positions().to_vec()
+    })
 }
 
 /// The linearised push alone ([`crate::sim::linear`], placed as the path
 /// model places its answers): the path model's starting point.
 pub fn linear_row(shape: TreeShape, data: &SizeData) -> SizeRow {
+    baseline_row("Linearised", shape, data, |tree, e| {
+        let graph =
+            encode_forward_path(tree, e.push.node, &e.push.vector).expect("validated episode");
+        graph.positions(tree, &vec![0.0; 3 * graph.input.n])
+    })
+}
+
+/// A method without a model, untimed: the mean over the episodes of the
+/// largest node error of the positions `predict` gives.
+fn baseline_row(
+    method: &str,
+    shape: TreeShape,
+    data: &SizeData,
+    predict: impl Fn(&Tree, &Episode) -> Vec<Point3<f64>>,
+) -> SizeRow {
     let sum: f64 = data
         .episodes
         .iter()
-        .map(|e| {
-            let tree = data.tree_of(e);
-            let graph =
-                encode_forward_path(tree, e.push.node, &e.push.vector).expect("validated episode");
-            let placed = graph.positions(tree, &vec![0.0; 3 * graph.input.n]);
-            max_error(&placed, &e.final_positions)
-        })
+        .map(|e| max_error(&predict(data.tree_of(e), e), &e.final_positions))
         .sum();
     SizeRow {
-        method: "Linearised".to_owned(),
+        method: method.to_owned(),
         shape,
         n: data.n,
         episodes: data.episodes.len(),

@@ -11,7 +11,9 @@ use super::batcher::{BatchLimits, Batcher, JobControl};
 use super::{Backend, InferError, LoadProblem, OnnxModel, init_backend, read_metadata};
 use treemanip_core::graph::contract::ModelOutput;
 use treemanip_core::graph::path::{Encoding, encode_forward_path};
-use treemanip_core::graph::{FEATURE_LAYOUT_VERSION, Task, batch, encode_forward, encode_policy};
+use treemanip_core::graph::{
+    FEATURE_LAYOUT_VERSION, GraphInput, Task, batch, encode_forward, encode_policy,
+};
 use treemanip_core::model::card::ModelCard;
 use treemanip_core::planner::Candidate;
 use treemanip_core::tree::Tree;
@@ -116,7 +118,8 @@ impl ServedModel {
             .collect::<Result<Vec<_>, _>>()?;
         let task = sessions[0].task();
         for session in &mut sessions {
-            canary(session, task).map_err(|e| problem(LoadProblem::Canary(e.to_string())))?;
+            canary(session, task, card.encoding)
+                .map_err(|e| problem(LoadProblem::Canary(e.to_string())))?;
         }
         let name = path
             .file_stem()
@@ -148,8 +151,9 @@ impl ServedModel {
 /// Every session must answer a tiny inference (a three-node tree) with
 /// finite outputs of the contract's shapes before it serves: a file that
 /// loads but computes garbage (NaN weights, a wrong graph) is refused at
-/// start-up instead of answering nonsense.
-fn canary(session: &mut OnnxModel, task: Task) -> Result<(), InferError> {
+/// start-up instead of answering nonsense. The graph is the one the model
+/// reads (`encoding`: the fully connected graph or the push's path).
+fn canary(session: &mut OnnxModel, task: Task, encoding: Encoding) -> Result<(), InferError> {
     use treemanip_core::tree::Wood;
     let positions = vec![
         Point3::new(0.0, 0.0, 0.0),
@@ -166,7 +170,13 @@ fn canary(session: &mut OnnxModel, task: Task) -> Result<(), InferError> {
     ];
     let tree = Tree::new(positions, parents, branches).expect("the canary tree is valid");
     let graph = match task {
-        Task::Forward => encode_forward(&tree, 2, &Vector3::new(0.0, 0.05, 0.0)),
+        Task::Forward => {
+            let push = Vector3::new(0.0, 0.05, 0.0);
+            match encoding {
+                Encoding::Full => encode_forward(&tree, 2, &push),
+                Encoding::Path => encode_forward_path(&tree, 2, &push).map(|g| g.input),
+            }
+        }
         Task::Policy => {
             let targets: Vec<_> = tree
                 .positions()
@@ -298,10 +308,10 @@ pub fn default_name(task: Task) -> &'static [&'static str] {
     }
 }
 
-/// Predicted displacements Δp (m) per node, for each (contact node, push).
-/// Chunks of at most [`MAX_BATCH`] actions (fewer for large trees, see
-/// [`super::batcher::MAX_PAIRS`]) are queued together, so the model's
-/// sessions run them in parallel.
+/// Predicted displacements Δp (m) per node, for each (contact node, push):
+/// the fully connected graph's output as it is, or for a path model each
+/// push's path graph (a few to a few dozen nodes, whatever the tree's
+/// size) placed on the whole tree by forward kinematics.
 pub fn predict_displacements(
     model: &ServedModel,
     tree: &Tree,
@@ -309,77 +319,67 @@ pub fn predict_displacements(
     control: &JobControl,
 ) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
     let _timer = InferenceTimer::start(model);
-    if model.card.encoding == Encoding::Path {
-        return predict_on_paths(model, tree, actions, control);
-    }
-    let n = tree.len();
-    let mut pending = Vec::new();
-    // Split so that every session gets a share of a small call (a planner's
-    // search round runs on all cores), and large trees get smaller chunks.
-    let per_chunk = super::batcher::graphs_per_batch(n, MAX_BATCH, super::batcher::MAX_PAIRS)
-        .min(actions.len().div_ceil(model.sessions.max(1)))
-        .max(1);
-    for chunk in actions.chunks(per_chunk) {
-        let graphs = chunk
-            .iter()
-            .map(|(node, push)| encode_forward(tree, *node, push))
-            .collect::<Result<Vec<_>, _>>()?;
-        let b = batch(&graphs)?;
-        pending.push((chunk.len(), model.batcher.submit(b, control.clone())));
-    }
-    let mut out = Vec::with_capacity(actions.len());
-    for (count, answer) in pending {
-        let y = answer.wait()?;
-        for k in 0..count {
-            out.push(
-                (0..n)
-                    .map(|j| {
-                        let v = &y.vectors[(k * n + j) * 3..(k * n + j) * 3 + 3];
-                        Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64)
-                    })
-                    .collect(),
-            );
+    let vector = |v: &[f32]| Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+    match model.card.encoding {
+        Encoding::Full => {
+            let graphs = actions
+                .iter()
+                .map(|(node, push)| encode_forward(tree, *node, push))
+                .collect::<Result<Vec<_>, _>>()?;
+            let rows = run_in_chunks(model, &graphs, control)?;
+            Ok(rows
+                .iter()
+                .map(|r| r.chunks_exact(3).map(vector).collect())
+                .collect())
+        }
+        Encoding::Path => {
+            let paths = actions
+                .iter()
+                .map(|(node, push)| encode_forward_path(tree, *node, push))
+                .collect::<Result<Vec<_>, _>>()?;
+            let graphs: Vec<GraphInput> = paths.iter().map(|p| p.input.clone()).collect();
+            let rows = run_in_chunks(model, &graphs, control)?;
+            Ok(paths
+                .iter()
+                .zip(&rows)
+                .map(|(path, r)| {
+                    path.positions(tree, r)
+                        .iter()
+                        .zip(tree.positions())
+                        .map(|(a, b)| a - b)
+                        .collect()
+                })
+                .collect())
         }
     }
-    Ok(out)
 }
 
-/// [`predict_displacements`] for a path model: each push's path graph (a
-/// few to a few dozen nodes, whatever the tree's size) through the model,
-/// its joint rotations placed on the whole tree by forward kinematics.
-fn predict_on_paths(
+/// Each graph's output rows (3 numbers per node). Chunks of at most
+/// [`MAX_BATCH`] graphs (fewer for large ones, see
+/// [`super::batcher::MAX_PAIRS`]) are queued together, so the model's
+/// sessions run them in parallel; a small call is split so that every
+/// session gets a share (a planner's search round runs on all cores).
+fn run_in_chunks(
     model: &ServedModel,
-    tree: &Tree,
-    actions: &[(usize, Vector3<f64>)],
+    graphs: &[GraphInput],
     control: &JobControl,
-) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
-    let graphs = actions
-        .iter()
-        .map(|(node, push)| encode_forward_path(tree, *node, push))
-        .collect::<Result<Vec<_>, _>>()?;
-    let deepest = graphs.iter().map(|g| g.input.n).max().unwrap_or(1);
-    let per_chunk = super::batcher::graphs_per_batch(deepest, MAX_BATCH, super::batcher::MAX_PAIRS)
-        .min(actions.len().div_ceil(model.sessions.max(1)))
+) -> Result<Vec<Vec<f32>>, InferError> {
+    let largest = graphs.iter().map(|g| g.n).max().unwrap_or(1);
+    let per_chunk = super::batcher::graphs_per_batch(largest, MAX_BATCH, super::batcher::MAX_PAIRS)
+        .min(graphs.len().div_ceil(model.sessions.max(1)))
         .max(1);
-    let mut pending = Vec::new();
-    for chunk in graphs.chunks(per_chunk) {
-        let inputs: Vec<_> = chunk.iter().map(|g| g.input.clone()).collect();
-        let b = batch(&inputs)?;
-        pending.push((chunk, b.n, model.batcher.submit(b, control.clone())));
-    }
-    let mut out = Vec::with_capacity(actions.len());
+    let pending = graphs
+        .chunks(per_chunk)
+        .map(|chunk| {
+            let b = batch(chunk)?;
+            Ok((chunk, b.n, model.batcher.submit(b, control.clone())))
+        })
+        .collect::<Result<Vec<_>, InferError>>()?;
+    let mut out = Vec::with_capacity(graphs.len());
     for (chunk, n, answer) in pending {
         let y = answer.wait()?;
-        for (k, graph) in chunk.iter().enumerate() {
-            let rows = &y.vectors[k * n * 3..(k + 1) * n * 3];
-            let placed = graph.positions(tree, rows);
-            out.push(
-                placed
-                    .iter()
-                    .zip(tree.positions())
-                    .map(|(a, b)| a - b)
-                    .collect(),
-            );
+        for (k, g) in chunk.iter().enumerate() {
+            out.push(y.vectors[k * n * 3..(k * n + g.n) * 3].to_vec());
         }
     }
     Ok(out)

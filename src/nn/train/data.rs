@@ -10,7 +10,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::dataset::{Episode, SizeData, Split, read_size_file};
-use crate::graph::path::{Encoding, PathGraph, encode_forward_path};
+use crate::graph::path::{Encoding, encode_forward_path};
 use crate::graph::stats::{Running, StatsBuilder};
 use crate::graph::{
     Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy, rotate_xy,
@@ -107,47 +107,36 @@ impl Examples {
         (data, &data.episodes[e])
     }
 
-    /// The encoded model input of one example.
-    pub fn graph(&self, task: Task, id: (usize, usize)) -> GraphInput {
-        if self.encoding == Encoding::Path {
-            return self.path_graph(id).input;
-        }
+    /// The encoded model input of one example and, for the forward model,
+    /// what it learns: Δp (m) per graph node (empty for the policy). A
+    /// path graph is built once for both.
+    pub fn example(&self, task: Task, id: (usize, usize)) -> (GraphInput, Vec<f32>) {
         let (data, episode) = self.episode(id);
         let tree = data.tree_of(episode);
-        let encoded = match task {
-            Task::Forward => encode_forward(tree, episode.push.node, &episode.push.vector),
-            Task::Policy => encode_policy(tree, &episode.final_positions),
-        };
-        encoded.expect("dataset episodes are validated when read")
-    }
-
-    /// The path graph of one example (forward model, path encoding).
-    fn path_graph(&self, id: (usize, usize)) -> PathGraph {
-        let (data, episode) = self.episode(id);
-        encode_forward_path(
-            data.tree_of(episode),
-            episode.push.node,
-            &episode.push.vector,
-        )
-        .expect("dataset episodes are validated when read")
-    }
-
-    /// What the model learns for one example: Δp (m) per graph node.
-    fn target_rows(&self, id: (usize, usize)) -> Vec<f32> {
-        let (data, episode) = self.episode(id);
-        match self.encoding {
-            Encoding::Full => episode
-                .final_positions
-                .iter()
-                .zip(data.tree_of(episode).positions())
-                .flat_map(|(after, before)| {
-                    let d = after - before;
-                    [d.x as f32, d.y as f32, d.z as f32]
-                })
-                .collect(),
-            Encoding::Path => self
-                .path_graph(id)
-                .displacement_targets(data.tree_of(episode), &episode.final_positions),
+        let (node, push) = (episode.push.node, &episode.push.vector);
+        let valid = "dataset episodes are validated when read";
+        match (task, self.encoding) {
+            (Task::Policy, _) => (
+                encode_policy(tree, &episode.final_positions).expect(valid),
+                Vec::new(),
+            ),
+            (Task::Forward, Encoding::Path) => {
+                let graph = encode_forward_path(tree, node, push).expect(valid);
+                let rows = graph.displacement_targets(tree, &episode.final_positions);
+                (graph.input, rows)
+            }
+            (Task::Forward, Encoding::Full) => {
+                let rows = episode
+                    .final_positions
+                    .iter()
+                    .zip(tree.positions())
+                    .flat_map(|(after, before)| {
+                        let d = after - before;
+                        [d.x as f32, d.y as f32, d.z as f32]
+                    })
+                    .collect();
+                (encode_forward(tree, node, push).expect(valid), rows)
+            }
         }
     }
 
@@ -167,17 +156,17 @@ impl Examples {
         angles: &[f64],
     ) -> (Batch, Targets) {
         assert!(angles.is_empty() || angles.len() == ids.len());
-        let graphs: Vec<GraphInput> = ids
+        let (graphs, rows): (Vec<GraphInput>, Vec<Vec<f32>>) = ids
             .iter()
             .enumerate()
             .map(|(k, &id)| {
-                let mut g = self.graph(task, id);
+                let (mut g, rows) = self.example(task, id);
                 if let Some(&angle) = angles.get(k) {
                     g.rotate_about_vertical(angle);
                 }
-                g
+                (g, rows)
             })
-            .collect();
+            .unzip();
         let batch = batch(&graphs).expect("non-empty batch of one task");
         let n = batch.n;
         let mut targets = Targets {
@@ -185,9 +174,8 @@ impl Examples {
             contact: Vec::with_capacity(ids.len()),
             push: Vec::with_capacity(ids.len() * 3),
         };
-        for (k, &id) in ids.iter().enumerate() {
+        for (k, (&id, rows)) in ids.iter().zip(&rows).enumerate() {
             let (_, episode) = self.episode(id);
-            let rows = self.target_rows(id);
             targets.displacement[k * n * 3..k * n * 3 + rows.len()].copy_from_slice(&rows);
             targets.contact.push(episode.push.node);
             let t: Vector3<f64> = episode.push.vector;
@@ -209,7 +197,7 @@ impl Examples {
         let mut outputs = Running::new(3);
         let mut position = Running::new(3);
         for &id in &self.train {
-            let g = self.graph(task, id);
+            let (g, rows) = self.example(task, id);
             inputs.add(&g);
             for j in 0..g.n {
                 position.push(&g.edge(0, j)[..3]);
@@ -217,7 +205,6 @@ impl Examples {
             let (_, episode) = self.episode(id);
             match task {
                 Task::Forward => {
-                    let rows = self.target_rows(id);
                     for j in 0..g.n {
                         outputs.push(&rows[3 * j..3 * j + 3]);
                     }

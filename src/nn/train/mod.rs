@@ -278,12 +278,7 @@ pub fn train(
         );
     }
     std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))?;
-    let examples = Examples::load(
-        &config.data,
-        &config.sizes,
-        config.limit_per_size,
-        config.encoding,
-    )?;
+    let examples = examples_of(&config)?;
     let state = TrainState {
         normalisation: Normalisation::of(&examples, &config)?,
         learning_rate: config.learning_rate,
@@ -300,9 +295,31 @@ pub fn train(
         epoch_loss_count: 0,
         cpus: Vec::new(),
     };
+    run_arch(state, examples, dir, false, deadline, on_event)
+}
+
+/// The examples a run's configuration names.
+fn examples_of(config: &TrainConfig) -> anyhow::Result<Examples> {
+    Examples::load(
+        &config.data,
+        &config.sizes,
+        config.limit_per_size,
+        config.encoding,
+    )
+}
+
+/// [`run`] for the run's architecture.
+fn run_arch(
+    state: TrainState,
+    examples: Examples,
+    dir: &Path,
+    resumed: bool,
+    deadline: Option<Instant>,
+    on_event: &mut dyn FnMut(TrainEvent),
+) -> anyhow::Result<(TrainState, StopReason)> {
     match state.config.arch {
-        Arch::Gnn => run::<TrainGnn>(state, examples, dir, false, deadline, on_event),
-        Arch::PointNet => run::<TrainPointNet>(state, examples, dir, false, deadline, on_event),
+        Arch::Gnn => run::<TrainGnn>(state, examples, dir, resumed, deadline, on_event),
+        Arch::PointNet => run::<TrainPointNet>(state, examples, dir, resumed, deadline, on_event),
     }
 }
 
@@ -325,21 +342,13 @@ pub fn resume(
     }
     state.commands.push(options.command);
     let config = &state.config;
-    let examples = Examples::load(
-        &config.data,
-        &config.sizes,
-        config.limit_per_size,
-        config.encoding,
-    )?;
+    let examples = examples_of(config)?;
     anyhow::ensure!(
         Normalisation::of(&examples, config)? == state.normalisation,
         "the data in {} is not the data this run started on (its statistics differ); regenerate it with the run's dataset command",
         config.data.display()
     );
-    match state.config.arch {
-        Arch::Gnn => run::<TrainGnn>(state, examples, dir, true, deadline, on_event),
-        Arch::PointNet => run::<TrainPointNet>(state, examples, dir, true, deadline, on_event),
-    }
+    run_arch(state, examples, dir, true, deadline, on_event)
 }
 
 fn run<M: Net>(

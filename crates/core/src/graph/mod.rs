@@ -247,13 +247,8 @@ pub fn encode_forward(
     contact: usize,
     push: &Vector3<f64>,
 ) -> Result<GraphInput, EncodeError> {
+    check_push(tree, contact, push)?;
     let n = tree.len();
-    if contact == 0 || contact >= n {
-        return Err(EncodeError::ContactNode { node: contact, n });
-    }
-    if !push.iter().all(|v| v.is_finite()) {
-        return Err(EncodeError::NonFinite { what: "push" });
-    }
     let mut nodes = vec![0.0f32; n];
     nodes[contact] = 1.0;
     Ok(GraphInput {
@@ -263,6 +258,23 @@ pub fn encode_forward(
         edges: edge_attributes(tree),
         global: vec![push.x as f32, push.y as f32, push.z as f32],
     })
+}
+
+/// What every forward encoding needs of a push: a non-root node of the
+/// tree and a finite vector.
+pub(crate) fn check_push(
+    tree: &Tree,
+    contact: usize,
+    push: &Vector3<f64>,
+) -> Result<(), EncodeError> {
+    let n = tree.len();
+    if contact == 0 || contact >= n {
+        return Err(EncodeError::ContactNode { node: contact, n });
+    }
+    if !push.iter().all(|v| v.is_finite()) {
+        return Err(EncodeError::NonFinite { what: "push" });
+    }
+    Ok(())
 }
 
 /// Contact policy input: the tree and where its nodes should go (m).

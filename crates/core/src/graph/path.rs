@@ -123,13 +123,8 @@ pub fn encode_forward_path(
     contact: usize,
     push: &Vector3<f64>,
 ) -> Result<PathGraph, EncodeError> {
+    super::check_push(tree, contact, push)?;
     let n = tree.len();
-    if contact == 0 || contact >= n {
-        return Err(EncodeError::ContactNode { node: contact, n });
-    }
-    if !push.iter().all(|v| v.is_finite()) {
-        return Err(EncodeError::NonFinite { what: "push" });
-    }
     let mut nodes = tree.path_to_root(contact);
     nodes.reverse();
     let path_len = nodes.len();
@@ -171,21 +166,19 @@ pub fn encode_forward_path(
     let edges = edge_attributes_with(&positions, &parents, &kappa);
     let mut node_features = vec![0.0f32; m];
     node_features[path_len - 1] = 1.0;
-    let linear = positions_from_rotations(
+    let linear = linear_rotations(
         tree,
-        &linear_rotations(
-            tree,
-            &Push {
-                node: contact,
-                vector: *push,
-            },
-            ContactModel::Slot,
-        ),
+        &Push {
+            node: contact,
+            vector: *push,
+        },
+        ContactModel::Slot,
     );
-    let prior = nodes
+    let prior = graph_positions(tree, &nodes, path_len, &hangs_from, &linear)
         .iter()
-        .flat_map(|&j| {
-            let d = linear[j] - tree.position(j);
+        .zip(&nodes)
+        .flat_map(|(placed, &j)| {
+            let d = placed - tree.position(j);
             [d.x as f32, d.y as f32, d.z as f32]
         })
         .collect();
@@ -287,6 +280,36 @@ fn best_rotation(pairs: &[(Vector3<f64>, Vector3<f64>, f64)]) -> Option<Rotation
     Some(Rotation3::from_matrix_unchecked(fixed))
 }
 
+/// Where the graph's nodes go when the path joints `(node, θ)` turn: the
+/// path by forward kinematics along it, each side node rigidly with the
+/// branch ending at its path node. O(path), where placing the whole tree
+/// ([`positions_from_rotations`]) is O(N).
+fn graph_positions(
+    tree: &Tree,
+    nodes: &[usize],
+    path_len: usize,
+    hangs_from: &[usize],
+    thetas: &[(usize, Vector3<f64>)],
+) -> Vec<Point3<f64>> {
+    let mut orientation = vec![Rotation3::identity(); path_len];
+    let mut placed = Vec::with_capacity(nodes.len());
+    placed.push(tree.position(nodes[0]));
+    for k in 1..path_len {
+        let theta = thetas
+            .iter()
+            .find(|(j, _)| *j == nodes[k])
+            .map_or_else(Vector3::zeros, |(_, t)| *t);
+        orientation[k] = orientation[k - 1] * Rotation3::new(theta);
+        let rest = tree.position(nodes[k]) - tree.position(nodes[k - 1]);
+        placed.push(placed[k - 1] + orientation[k] * rest);
+    }
+    for (s, &k) in hangs_from.iter().enumerate() {
+        let rest = tree.position(nodes[path_len + s]) - tree.position(nodes[k]);
+        placed.push(placed[k] + orientation[k] * rest);
+    }
+    placed
+}
+
 /// Every node's position when the joints `(node, θ)` turn (the joint at
 /// each node's parent; all others at rest).
 pub fn positions_from_rotations(tree: &Tree, thetas: &[(usize, Vector3<f64>)]) -> Vec<Point3<f64>> {
@@ -302,6 +325,39 @@ mod tests {
     use super::*;
     use crate::sim::{SimConfig, simulate};
     use crate::tree::{OrchardParams, generate_orchard};
+
+    /// The prior placed on the graph's nodes alone is the whole tree's
+    /// forward kinematics at those nodes.
+    #[test]
+    fn the_graphs_prior_is_the_whole_trees_at_its_nodes() {
+        let tree = generate_orchard(200, 9, &OrchardParams::default()).unwrap();
+        for contact in (5..tree.len()).step_by(17) {
+            let push = Vector3::new(0.06, -0.03, 0.02);
+            let graph = encode_forward_path(&tree, contact, &push).unwrap();
+            let thetas = linear_rotations(
+                &tree,
+                &Push {
+                    node: contact,
+                    vector: push,
+                },
+                ContactModel::Slot,
+            );
+            let all = positions_from_rotations(&tree, &thetas);
+            for (k, &j) in graph.nodes.iter().enumerate() {
+                let d = all[j] - tree.position(j);
+                for a in 0..3 {
+                    assert!(
+                        (graph.prior[3 * k + a] as f64 - d[a]).abs() < 1e-6,
+                        "node {j}"
+                    );
+                }
+            }
+            assert!(
+                graph.prior.iter().any(|v| v.abs() > 1e-3),
+                "the push moves the graph"
+            );
+        }
+    }
 
     #[test]
     fn simulated_displacements_through_the_path_graph_give_the_simulated_tree() {
