@@ -176,7 +176,7 @@ impl Examples {
         };
         for (k, (&id, rows)) in ids.iter().zip(&rows).enumerate() {
             let (_, episode) = self.episode(id);
-            targets.displacement[k * n * 3..k * n * 3 + rows.len()].copy_from_slice(&rows);
+            targets.displacement[k * n * 3..k * n * 3 + rows.len()].copy_from_slice(rows);
             targets.contact.push(episode.push.node);
             let t: Vector3<f64> = episode.push.vector;
             targets.push.extend([t.x as f32, t.y as f32, t.z as f32]);
