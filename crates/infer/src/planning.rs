@@ -3,6 +3,7 @@
 //! [`treemanip_core::planner::Predictor`]).
 
 use nalgebra::Point3;
+use treemanip_core::graph::path::{Encoding, PATH_GRAPH_MAX_NODES};
 use treemanip_core::planner::{Candidate, ContactPolicy, PredictError, Predictor};
 use treemanip_core::sim::Push;
 use treemanip_core::tree::Tree;
@@ -22,18 +23,32 @@ impl ContactPolicy for ServedModel {
     }
 }
 
-/// The forward GNN: one batched inference for all pushes.
+/// A forward model: one batched inference for all the pushes it can read
+/// (a path model reads paths of at most
+/// [`PATH_GRAPH_MAX_NODES`] nodes; deeper pushes get no prediction).
 impl Predictor for ServedModel {
     fn final_positions(
         &self,
         tree: &Tree,
         pushes: &[Push],
     ) -> Result<Vec<Option<Vec<Point3<f64>>>>, PredictError> {
-        let actions: Vec<_> = pushes.iter().map(|p| (p.node, p.vector)).collect();
-        let displacements = predict_displacements(self, tree, &actions, &Default::default())?;
-        Ok(displacements
-            .into_iter()
-            .map(|d| {
+        let readable = |p: &Push| {
+            self.card.encoding != Encoding::Path || tree.depth(p.node) < PATH_GRAPH_MAX_NODES
+        };
+        let actions: Vec<_> = pushes
+            .iter()
+            .filter(|p| readable(p))
+            .map(|p| (p.node, p.vector))
+            .collect();
+        let mut displacements =
+            predict_displacements(self, tree, &actions, &Default::default())?.into_iter();
+        Ok(pushes
+            .iter()
+            .map(|p| {
+                if !readable(p) {
+                    return None;
+                }
+                let d = displacements.next()?;
                 Some(
                     tree.positions()
                         .iter()

@@ -239,6 +239,14 @@ pub enum EncodeError {
     TargetCount { got: usize, n: usize },
     #[error("non-finite {what}")]
     NonFinite { what: &'static str },
+    #[error(
+        "node {node} is {joints} joints from the root; a path model reads paths of at most {max} joints"
+    )]
+    PathTooDeep {
+        node: usize,
+        joints: usize,
+        max: usize,
+    },
 }
 
 /// Forward model input: the tree, the contacted node and the push T (m).

@@ -43,8 +43,10 @@ pub enum Encoding {
     /// [`crate::tree::FULL_GRAPH_MAX_NODES`].
     #[default]
     Full,
-    /// The root-to-contact path (this module); the output is each path
-    /// joint's rotation θ (rad), placed by forward kinematics. No size limit.
+    /// The root-to-contact path and its side branches (this module); the
+    /// output is each graph node's Δp beyond the linearised push, placed on
+    /// the whole tree as path joint rotations. Any tree size; the graph
+    /// itself has at most [`PATH_GRAPH_MAX_NODES`] nodes.
     Path,
 }
 
@@ -84,6 +86,16 @@ pub struct PathGraph {
     pub prior: Vec<f32>,
     pub input: GraphInput,
 }
+
+/// Most nodes of one path graph: the fully connected models' limit
+/// ([`crate::tree::FULL_GRAPH_MAX_NODES`]), so one push costs what the
+/// paper's GNN costs at most. Orchard trees of 500 nodes have path graphs
+/// of 31 nodes at the median and 61 at most (20 trees, every node pushed):
+/// a path deeper than this is refused ([`EncodeError::PathTooDeep`]); a
+/// path with more side branches than fit keeps those nearest the contact
+/// (the joints that turn most) and places the others' branches by the
+/// least turn, as for a side node in line with its path branch.
+pub const PATH_GRAPH_MAX_NODES: usize = crate::tree::FULL_GRAPH_MAX_NODES;
 
 /// Smallest angle (rad) between a side node's direction from its path node
 /// and the path branch: closer to collinear, the pair says little about
@@ -128,11 +140,19 @@ pub fn encode_forward_path(
     let mut nodes = tree.path_to_root(contact);
     nodes.reverse();
     let path_len = nodes.len();
+    if path_len > PATH_GRAPH_MAX_NODES {
+        return Err(EncodeError::PathTooDeep {
+            node: contact,
+            joints: path_len - 1,
+            max: PATH_GRAPH_MAX_NODES - 1,
+        });
+    }
     let mut hangs_from = Vec::new();
-    for k in 1..path_len {
+    // Side branches from the contact towards the root, while they fit.
+    for k in (1..path_len).rev() {
         let next = nodes.get(k + 1).copied();
         for &c in tree.children(nodes[k]) {
-            if Some(c) != next {
+            if Some(c) != next && nodes.len() < PATH_GRAPH_MAX_NODES {
                 nodes.push(side_representative(tree, nodes[k - 1], nodes[k], c));
                 hangs_from.push(k);
             }
@@ -325,6 +345,61 @@ mod tests {
     use super::*;
     use crate::sim::{SimConfig, simulate};
     use crate::tree::{OrchardParams, generate_orchard};
+
+    /// A comb: a 40-joint spine with two twigs at every spine node. Its
+    /// deepest push's graph holds the root, the path and as many side nodes
+    /// as fit, those nearest the contact first; a spine of 70 joints is
+    /// refused by name.
+    #[test]
+    fn path_graphs_hold_at_most_their_limit() {
+        use crate::tree::{Branch, Tree};
+        let comb = |spine: usize| {
+            let mut positions = vec![Point3::origin()];
+            let mut parents = vec![None];
+            for k in 1..=spine {
+                positions.push(Point3::new(0.0, 0.0, 0.1 * k as f64));
+                parents.push(Some(if k == 1 { 0 } else { 3 * (k - 1) - 2 }));
+                for side in [-1.0, 1.0] {
+                    positions.push(Point3::new(0.08 * side, 0.0, 0.1 * k as f64 + 0.05));
+                    parents.push(Some(3 * k - 2));
+                }
+            }
+            let branches = (0..positions.len())
+                .map(|j| {
+                    parents[j].map(|p: usize| {
+                        let length = (positions[j] - positions[p]).norm();
+                        Branch {
+                            radius: 0.01,
+                            length,
+                            stiffness: 50.0,
+                            damping: 1.0,
+                        }
+                    })
+                })
+                .collect();
+            Tree::new(positions, parents, branches).unwrap()
+        };
+        let tree = comb(40);
+        let tip = 3 * 40 - 2;
+        assert_eq!(tree.depth(tip), 40);
+        let graph = encode_forward_path(&tree, tip, &(Vector3::x() * 0.05)).unwrap();
+        assert_eq!(graph.input.n, PATH_GRAPH_MAX_NODES);
+        assert_eq!(graph.path_len, 41);
+        // 23 side nodes: both twigs of the 11 spine nodes nearest the
+        // contact, and one of the twelfth.
+        assert_eq!(graph.hangs_from.iter().min(), Some(&29));
+        let placed = graph.positions(&tree, &vec![0.0; 3 * graph.input.n]);
+        assert_eq!(placed.len(), tree.len());
+        let deep = comb(70);
+        assert_eq!(
+            encode_forward_path(&deep, 3 * 70 - 2, &Vector3::x()),
+            Err(EncodeError::PathTooDeep {
+                node: 3 * 70 - 2,
+                joints: 70,
+                max: PATH_GRAPH_MAX_NODES - 1
+            })
+        );
+    }
 
     /// The prior placed on the graph's nodes alone is the whole tree's
     /// forward kinematics at those nodes.

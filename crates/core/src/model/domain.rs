@@ -22,7 +22,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::graph::log_stiffness_ratios;
-use crate::graph::path::Encoding;
+use crate::graph::path::{Encoding, PATH_GRAPH_MAX_NODES};
 use crate::tree::Tree;
 
 /// Sizes the paper evaluates on (trained on 11…19, zero-shot to 30).
@@ -175,7 +175,7 @@ pub fn tree_height(tree: &Tree) -> f64 {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Violation {
     /// `tree_height`, `branch_length`, `branch_radius`,
-    /// `stiffness_log_ratio`, `push_length` or `nodes`.
+    /// `stiffness_log_ratio`, `push_length`, `nodes` or `path_joints`.
     pub quantity: &'static str,
     pub value: f64,
     pub min: f64,
@@ -250,12 +250,25 @@ impl Domain {
         out
     }
 
-    /// A path model's check of the branches a push at `node` moves: each
-    /// one's κ relative to the path's mean (what the model reads), against
-    /// the trained range. Empty for the paper's encoding.
+    /// A path model's check of the branches a push at `node` moves: the
+    /// path's depth against what one path graph holds
+    /// ([`PATH_GRAPH_MAX_NODES`]), and each branch's κ relative to the
+    /// path's mean (what the model reads) against the trained range. Empty
+    /// for the paper's encoding.
     pub fn check_path(&self, tree: &Tree, node: usize) -> Vec<Violation> {
         if self.encoding != Encoding::Path || node == 0 || node >= tree.len() {
             return Vec::new();
+        }
+        let joints = tree.depth(node);
+        if joints >= PATH_GRAPH_MAX_NODES {
+            return vec![Violation {
+                quantity: "path_joints",
+                value: joints as f64,
+                min: 1.0,
+                max: (PATH_GRAPH_MAX_NODES - 1) as f64,
+                node: Some(node),
+                refused: true,
+            }];
         }
         let mut path = tree.path_to_root(node);
         path.pop();

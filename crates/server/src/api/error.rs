@@ -102,13 +102,17 @@ impl ApiError {
 }
 
 /// A failed model job: a deadline that passed or a client that went away is
-/// a timeout (nobody reads a cancelled job's answer); anything else is ours.
+/// a timeout (nobody reads a cancelled job's answer); an input the model
+/// cannot read is the request's; anything else is ours.
 impl From<InferError> for ApiError {
     fn from(e: InferError) -> Self {
         match e {
             InferError::DeadlineExceeded | InferError::Cancelled => {
                 ApiError::deadline(e.to_string())
             }
+            // What the request asked the model to read (a push deeper than
+            // a path graph holds, when the domain check is overridden).
+            InferError::Encode(_) => ApiError::invalid_argument(e.to_string()),
             _ => ApiError::internal(format!("inference failed: {e}")),
         }
     }

@@ -223,3 +223,60 @@ fn identify_and_plan_on_a_200_node_tree() {
         }
     }
 }
+
+/// A 300-node chain (a helix of 10 cm branches): the path model reads
+/// paths of at most 63 joints, so a deeper push is refused by name (422
+/// `out_of_domain`, `path_joints`; with `allow_out_of_domain` a 422 that
+/// says why), a shallower one is answered, and a plan on the chain ends
+/// with an answer, never a 500.
+#[test]
+fn a_path_deeper_than_a_path_graph_holds_is_refused_by_name() {
+    let server = Server::start(&["--models-dir", MODELS]);
+    let n: usize = 300;
+    let positions: Vec<[f64; 3]> = (0..n)
+        .map(|j| {
+            let a = j as f64 * 0.9;
+            let r = if j == 0 { 0.0 } else { 0.08 };
+            [r * a.cos(), r * a.sin(), j as f64 * 0.06]
+        })
+        .collect();
+    let parents: Vec<Option<usize>> = (0..n).map(|j| j.checked_sub(1)).collect();
+    let radius: Vec<f64> = (0..n).map(|j| 0.03 - 0.025 * j as f64 / n as f64).collect();
+    let tree = json!({"positions": positions, "parents": parents, "radius": radius});
+    let push = |node: usize| json!({"tree": tree, "contact_node": node, "push": [0.06, 0.0, 0.0], "model": "forward_path"});
+    let (status, error) = server.json("POST", "/v1/forward", &push(150));
+    assert_eq!(status, 422, "{error}");
+    assert_eq!(error["error"]["code"], "out_of_domain", "{error}");
+    let violation = &error["error"]["details"]["violations"][0];
+    assert_eq!(violation["quantity"], "path_joints", "{error}");
+    assert_eq!(violation["max"], 63.0, "{error}");
+    let mut allowed = push(150);
+    allowed["allow_out_of_domain"] = json!(true);
+    let (status, error) = server.json("POST", "/v1/forward", &allowed);
+    assert_eq!(status, 422, "{error}");
+    assert!(
+        error["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("at most 63 joints"),
+        "{error}"
+    );
+    let mut shallow = push(40);
+    shallow["allow_out_of_domain"] = json!(true);
+    let (status, answer) = server.json("POST", "/v1/forward", &shallow);
+    assert_eq!(status, 200, "{answer}");
+    assert_eq!(answer["positions"][0].as_array().unwrap().len(), n);
+
+    let targets: Vec<[f64; 3]> = positions
+        .iter()
+        .map(|p| [p[0] + 0.03 * p[2] / 18.0, p[1], p[2]])
+        .collect();
+    let (status, plan) = server.json(
+        "POST",
+        "/v1/plan",
+        &json!({"tree": tree, "target_positions": targets, "strategy": "model",
+                "allow_out_of_domain": true, "budget_ms": 1500}),
+    );
+    assert_eq!(status, 200, "{plan}");
+    assert!(plan["status"].is_string(), "{plan}");
+}
