@@ -110,7 +110,7 @@ pub fn eval_identify(args: EvalIdentifyArgs) -> anyhow::Result<()> {
         .collect::<Vec<_>>()
         .join(",");
     let md = format!(
-        "# Stiffness identification (`treemanip eval identify`)\n\n{} test-split trees (sizes {:?}, {} each, from `{}`), hidden stiffness K = K_formula·e^ε (every second tree also × a global factor log-uniform in [1/4, 4]); slot contact; seed {}. Regenerate: `treemanip eval identify --data DIR --sizes {} --trees-per-size {} --seed {}` with DIR from `{}`.\n\nRatio errors are |ln K̂/K| after removing the common level (mean over the identified branches), on `identified` branches; level errors (with force) are absolute. Coverage: the 90 % intervals of probed branches. Held-out: 5 random paper-style pushes per tree simulated with the estimate and with the radius formula, mean of the largest node error.\n\n{table}",
+        "# Stiffness identification (`treemanip eval identify`)\n\n{} test-split trees (sizes {:?}, {} each, from `{}`), hidden stiffness K = K_formula·e^ε (every second tree also × a global factor log-uniform in [1/4, 4]); slot contact; seed {}. Regenerate: `treemanip eval identify --data DIR --sizes {} --trees-per-size {} --seed {}{}` with DIR from `{}`.\n\nRatio errors are |ln K̂/K| after removing the common level (mean over the identified branches), on `identified` branches; level errors (with force) are absolute. Coverage: the 90 % intervals of probed branches. Held-out: 5 random paper-style pushes per tree simulated with the estimate and with the radius formula, mean of the largest node error.\n\n{table}",
         trees.len(),
         args.sizes.0,
         args.trees_per_size,
@@ -119,11 +119,22 @@ pub fn eval_identify(args: EvalIdentifyArgs) -> anyhow::Result<()> {
         sizes_arg,
         args.trees_per_size,
         args.seed,
+        [
+            (args.name != "identify").then(|| format!(" --name {}", args.name)),
+            (args.closed_loop_trees_per_size != 10).then(|| {
+                format!(
+                    " --closed-loop-trees-per-size {}",
+                    args.closed_loop_trees_per_size
+                )
+            }),
+        ]
+        .into_iter()
+        .flatten()
+        .collect::<String>(),
         crate::learn::dataset_config(&args.data)
             .as_ref()
             .and_then(crate::learn::dataset_command)
-            .unwrap_or_else(|| "treemanip dataset collect --out DIR --seed 7".into())
-            + &format!(" --test-sizes {sizes_arg}"),
+            .unwrap_or_else(|| "treemanip dataset collect --out DIR --seed 7".into()),
     );
     let md_path = args.out.join(format!("{}.md", args.name));
     std::fs::write(&md_path, md).with_context(|| format!("writing {}", md_path.display()))?;

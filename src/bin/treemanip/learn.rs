@@ -278,17 +278,30 @@ pub fn export_cmd(args: ExportArgs) -> anyhow::Result<()> {
 }
 
 /// The `config` that `dataset collect` recorded in the directory's
-/// summary.json.
+/// summary.json, with the sizes and episode counts of its files added
+/// (`train_sizes`, `test_sizes`, `train_episodes`, `test_episodes`).
 pub(crate) fn dataset_config(dir: &Path) -> Option<serde_json::Value> {
     let text = std::fs::read_to_string(dir.join("summary.json")).ok()?;
     let mut v: serde_json::Value = serde_json::from_str(&text).ok()?;
-    Some(v.get_mut("config")?.take())
+    let mut config = v.get_mut("config")?.take();
+    for split in ["train", "test"] {
+        let sizes: Vec<u64> = v["files"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter(|f| f["split"] == split)
+            .filter_map(|f| f["n"].as_u64())
+            .collect();
+        config[format!("{split}_sizes")] = serde_json::json!(sizes);
+        config[format!("{split}_episodes")] = v[format!("{split}_episodes")].clone();
+    }
+    Some(config)
 }
 
 /// The `dataset collect` command that regenerates the data recorded by
 /// `config` (see [`dataset_config`]): the seed and every option that
 /// differs from the default (stiffness perturbations, contact, trees per
-/// size).
+/// size, shape, sizes and episodes).
 pub(crate) fn dataset_command(config: &serde_json::Value) -> Option<String> {
     let mut command = format!(
         "treemanip dataset collect --out DIR --seed {}",
@@ -312,6 +325,29 @@ pub(crate) fn dataset_command(config: &serde_json::Value) -> Option<String> {
     }
     if let Some(shape) = config["shape"].as_str().filter(|s| *s != "sca") {
         command += &format!(" --shape {shape}");
+    }
+    // The sizes and episode counts where they are not the defaults.
+    let defaults = [
+        ("train", vec![11, 13, 15, 17, 19], 6000),
+        ("test", (10..=30).collect::<Vec<u64>>(), 1000),
+    ];
+    for (split, sizes, episodes) in defaults {
+        let recorded: Vec<u64> = config[format!("{split}_sizes")]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|n| n.as_u64())
+            .collect();
+        if !recorded.is_empty() && recorded != sizes {
+            let list: Vec<String> = recorded.iter().map(u64::to_string).collect();
+            command += &format!(" --{split}-sizes {}", list.join(","));
+        }
+        if let Some(e) = config[format!("{split}_episodes")]
+            .as_u64()
+            .filter(|e| *e != episodes)
+        {
+            command += &format!(" --{split}-episodes {e}");
+        }
     }
     Some(command)
 }
