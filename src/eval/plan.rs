@@ -95,6 +95,29 @@ fn executed(tree: &Tree, push: &Push, targets: &[Point3<f64>], fallback: f64) ->
         .map_or(fallback, |o| max_node_error(&o.final_positions, targets))
 }
 
+/// Plans `query` with the models as the server uses them: the policy GNN
+/// ranks the nodes of trees within its fully connected graph's size, the
+/// strategy's predictor (`model`: `forward`; otherwise the simulator) ranks
+/// them above ([`PredictivePolicy`]); `forward` predicts and reads loads.
+pub fn plan_as_served(
+    planner: &Planner,
+    query: &Query,
+    policy: &ServedModel,
+    forward: &ServedModel,
+) -> Result<crate::planner::Plan, crate::planner::PlanError> {
+    let predictor: &dyn Predictor = match query.strategy {
+        Strategy::Model => forward,
+        _ => &PhysicsPredictor,
+    };
+    let ranking = PredictivePolicy { predictor };
+    let contact: &dyn ContactPolicy = if query.tree.len() > FULL_GRAPH_MAX_NODES {
+        &ranking
+    } else {
+        policy
+    };
+    planner.plan(query, contact, Some(forward))
+}
+
 /// Plans one episode in one setting.
 pub fn plan_episode(
     planner: &Planner,
@@ -117,19 +140,7 @@ pub fn plan_episode(
         query.stance = Stance::Region(evaluation_region());
     }
     let no_action_error = max_node_error(tree.positions(), &targets);
-    // Above the policy GNN's size the predictor ranks the nodes, as the
-    // server does (`planner::PredictivePolicy`).
-    let predictor: &dyn Predictor = match setting.strategy {
-        Strategy::Model => forward,
-        _ => &PhysicsPredictor,
-    };
-    let ranking = PredictivePolicy { predictor };
-    let contact: &dyn ContactPolicy = if tree.len() > FULL_GRAPH_MAX_NODES {
-        &ranking
-    } else {
-        policy
-    };
-    let result = planner.plan(&query, contact, Some(forward));
+    let result = plan_as_served(planner, &query, policy, forward);
     let (plan, ms, outcomes) = match result {
         Ok(p) => (
             p.plan,

@@ -235,6 +235,7 @@ impl TaskResult {
 pub fn run_task(
     planner: &Planner,
     policy: &ServedModel,
+    // The forward model for this tree's size (`ModelSet::forward_for`).
     forward: &ServedModel,
     kind: TaskKind,
     tree: &Tree,
@@ -252,7 +253,7 @@ pub fn run_task(
         query.stance = Stance::Region(evaluation_region());
     }
     let no_action = objective.residual(tree, tree.positions());
-    let (plan, ms, outcomes, predicted_stress) = match planner.plan(&query, policy, Some(forward)) {
+    let (plan, ms, outcomes, predicted_stress) = match super::plan::plan_as_served(planner, &query, policy, forward) {
         Ok(p) => (
             p.plan,
             p.total_ms,

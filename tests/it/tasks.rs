@@ -157,6 +157,47 @@ fn loads_from_positions_match_the_simulator() {
     assert!(force_median < 0.02, "median force error {force_median}");
 }
 
+/// On a 200-node orchard tree, whose trunk is centimetres thick, a
+/// prediction's millimetres of noise on every node must not read as a
+/// trunk bent to gigapascals: the stress comes from the force the whole
+/// path balances, so 2 mm of noise moves it by a fraction, not a multiple.
+#[test]
+fn loads_from_noisy_positions_of_a_large_tree_stay_near_the_simulators() {
+    use rand::{RngExt, SeedableRng};
+    let tree = treemanip::tree::generate_orchard(200, 4, &Default::default()).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut ratios = Vec::new();
+    for node in (20..tree.len()).step_by(9) {
+        let axis = tree.branch_direction(node).unwrap();
+        let push = Push {
+            node,
+            vector: axis.cross(&nalgebra::Vector3::z()).normalize() * 0.08,
+        };
+        let Ok(out) = simulate(&tree, &push, &SimConfig::default()) else {
+            continue;
+        };
+        let exact = PushLoads::of_outcome(&tree, &out);
+        if exact.peak_stress < 1e6 {
+            continue;
+        }
+        let noisy: Vec<_> = out
+            .final_positions
+            .iter()
+            .map(|p| {
+                p + nalgebra::Vector3::from_fn(|_, _| rng.random_range(-0.002..0.002))
+            })
+            .collect();
+        let read = PushLoads::from_positions(&tree, &push, &noisy, ContactModel::Slot);
+        ratios.push(read.peak_stress / exact.peak_stress);
+    }
+    assert!(ratios.len() >= 8, "{} pushes", ratios.len());
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios[ratios.len() / 2];
+    let worst = ratios[ratios.len() - 1];
+    assert!((0.7..1.4).contains(&median), "median ratio {median} ({ratios:?})");
+    assert!(worst < 3.0, "worst ratio {worst} ({ratios:?})");
+}
+
 /// A single branch pushed sideways at its tip (pinned): the loads read
 /// from positions are the closed form M = K φ, F⊥ = M / ℓ.
 #[test]

@@ -94,7 +94,9 @@ pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
     let cases: Vec<_> = episodes
         .iter()
         .map(|(tree, e)| {
-            let predicted = forward
+            let predicted = set
+                .forward_for(tree.len())
+                .unwrap_or(forward)
                 .final_positions(tree, std::slice::from_ref(&e.push))
                 .ok()
                 .and_then(|mut v| v.pop().flatten());
@@ -157,7 +159,7 @@ pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
                     let r = run_task(
                         &planner,
                         policy,
-                        forward,
+                        set.forward_for(tree.len()).unwrap_or(forward),
                         kind,
                         tree,
                         objective,
@@ -255,7 +257,7 @@ pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
         } else {
             "; `shape_masked` is planned without limits, as the paper's shape benchmark (its targets come from unconstrained pushes)"
         },
-        accuracy_md("forward GNN's prediction", &accuracy),
+        accuracy_md("forward model's prediction", &accuracy),
         accuracy_md("the simulator's own (twist ignored)", &from_true_positions),
     );
     std::fs::write(args.out.join("tasks_eval.md"), &md)?;
