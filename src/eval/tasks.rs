@@ -253,18 +253,19 @@ pub fn run_task(
         query.stance = Stance::Region(evaluation_region());
     }
     let no_action = objective.residual(tree, tree.positions());
-    let (plan, ms, outcomes, predicted_stress) = match super::plan::plan_as_served(planner, &query, policy, forward) {
-        Ok(p) => (
-            p.plan,
-            p.total_ms,
-            p.attempts
-                .iter()
-                .map(|a| super::plan::outcome_name(&a.outcome))
-                .collect(),
-            p.predicted_loads.map(|l| l.peak_stress),
-        ),
-        Err(e) => (None, 0.0, vec![format!("error: {e}")], None),
-    };
+    let (plan, ms, outcomes, predicted_stress) =
+        match super::plan::plan_as_served(planner, &query, policy, forward) {
+            Ok(p) => (
+                p.plan,
+                p.total_ms,
+                p.attempts
+                    .iter()
+                    .map(|a| super::plan::outcome_name(&a.outcome))
+                    .collect(),
+                p.predicted_loads.map(|l| l.peak_stress),
+            ),
+            Err(e) => (None, 0.0, vec![format!("error: {e}")], None),
+        };
     let executed = plan.as_ref().and_then(|p| {
         execute(
             tree,

@@ -183,9 +183,7 @@ fn loads_from_noisy_positions_of_a_large_tree_stay_near_the_simulators() {
         let noisy: Vec<_> = out
             .final_positions
             .iter()
-            .map(|p| {
-                p + nalgebra::Vector3::from_fn(|_, _| rng.random_range(-0.002..0.002))
-            })
+            .map(|p| p + nalgebra::Vector3::from_fn(|_, _| rng.random_range(-0.002..0.002)))
             .collect();
         let read = PushLoads::from_positions(&tree, &push, &noisy, ContactModel::Slot);
         ratios.push(read.peak_stress / exact.peak_stress);
@@ -194,7 +192,10 @@ fn loads_from_noisy_positions_of_a_large_tree_stay_near_the_simulators() {
     ratios.sort_by(f64::total_cmp);
     let median = ratios[ratios.len() / 2];
     let worst = ratios[ratios.len() - 1];
-    assert!((0.7..1.4).contains(&median), "median ratio {median} ({ratios:?})");
+    assert!(
+        (0.7..1.4).contains(&median),
+        "median ratio {median} ({ratios:?})"
+    );
     assert!(worst < 3.0, "worst ratio {worst} ({ratios:?})");
 }
 

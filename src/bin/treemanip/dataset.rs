@@ -442,3 +442,78 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// The `config` that `dataset collect` recorded in the directory's
+/// summary.json, with the sizes and episode counts of its files added
+/// (`train_sizes`, `test_sizes`, `train_episodes`, `test_episodes`).
+pub(crate) fn dataset_config(dir: &std::path::Path) -> Option<serde_json::Value> {
+    let text = std::fs::read_to_string(dir.join("summary.json")).ok()?;
+    let mut v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let mut config = v.get_mut("config")?.take();
+    for split in ["train", "test"] {
+        let sizes: Vec<u64> = v["files"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter(|f| f["split"] == split)
+            .filter_map(|f| f["n"].as_u64())
+            .collect();
+        config[format!("{split}_sizes")] = serde_json::json!(sizes);
+        config[format!("{split}_episodes")] = v[format!("{split}_episodes")].clone();
+    }
+    Some(config)
+}
+
+/// The `dataset collect` command that regenerates the data recorded by
+/// `config` (see [`dataset_config`]): the seed and every option that
+/// differs from the default (stiffness perturbations, contact, trees per
+/// size, shape, sizes and episodes).
+pub(crate) fn dataset_command(config: &serde_json::Value) -> Option<String> {
+    let mut command = format!(
+        "treemanip dataset collect --out DIR --seed {}",
+        config["seed"].as_u64()?
+    );
+    let sigma = config["stiffness"]["branch_log_sigma"]
+        .as_f64()
+        .unwrap_or(0.0);
+    if sigma != 0.0 {
+        command += &format!(" --stiffness-sigma {sigma}");
+    }
+    let global = config["stiffness"]["global_factor"].as_f64().unwrap_or(1.0);
+    if global != 1.0 {
+        command += &format!(" --stiffness-global {global}");
+    }
+    if let Some(contact) = config["contact"].as_str().filter(|c| *c != "slot") {
+        command += &format!(" --contact {contact}");
+    }
+    if let Some(n) = config["trees_per_size"].as_u64().filter(|n| *n != 100) {
+        command += &format!(" --trees-per-size {n}");
+    }
+    if let Some(shape) = config["shape"].as_str().filter(|s| *s != "sca") {
+        command += &format!(" --shape {shape}");
+    }
+    // The sizes and episode counts where they are not the defaults.
+    let defaults = [
+        ("train", vec![11, 13, 15, 17, 19], 6000),
+        ("test", (10..=30).collect::<Vec<u64>>(), 1000),
+    ];
+    for (split, sizes, episodes) in defaults {
+        let recorded: Vec<u64> = config[format!("{split}_sizes")]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|n| n.as_u64())
+            .collect();
+        if !recorded.is_empty() && recorded != sizes {
+            let list: Vec<String> = recorded.iter().map(u64::to_string).collect();
+            command += &format!(" --{split}-sizes {}", list.join(","));
+        }
+        if let Some(e) = config[format!("{split}_episodes")]
+            .as_u64()
+            .filter(|e| *e != episodes)
+        {
+            command += &format!(" --{split}-episodes {e}");
+        }
+    }
+    Some(command)
+}

@@ -131,9 +131,9 @@ pub fn eval_identify(args: EvalIdentifyArgs) -> anyhow::Result<()> {
         .into_iter()
         .flatten()
         .collect::<String>(),
-        crate::learn::dataset_config(&args.data)
+        crate::dataset::dataset_config(&args.data)
             .as_ref()
-            .and_then(crate::learn::dataset_command)
+            .and_then(crate::dataset::dataset_command)
             .unwrap_or_else(|| "treemanip dataset collect --out DIR --seed 7".into()),
     );
     let md_path = args.out.join(format!("{}.md", args.name));
@@ -193,9 +193,9 @@ pub fn eval_stiffness(args: EvalStiffnessArgs) -> anyhow::Result<()> {
         "# Forward model and stiffness (`treemanip eval stiffness`)\n\n`{}` on the test split of `{}` (perturbed stiffness: `{}`), {} episodes per size.\n\n{table}",
         path.display(),
         args.data.display(),
-        crate::learn::dataset_config(&args.data)
+        crate::dataset::dataset_config(&args.data)
             .as_ref()
-            .and_then(crate::learn::dataset_command)
+            .and_then(crate::dataset::dataset_command)
             .unwrap_or_else(|| "no summary.json".into()),
         args.per_size
     );
