@@ -13,7 +13,7 @@ use crate::dataset::{Episode, SizeData, Split, read_size_file};
 use crate::graph::path::{Encoding, encode_forward_path};
 use crate::graph::stats::{Running, StatsBuilder};
 use crate::graph::{
-    Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy, rotate_xy,
+    Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy, offsets, rotate_xy,
 };
 use crate::model::domain::Span;
 use crate::seed::derive_seed;
@@ -125,18 +125,10 @@ impl Examples {
                 let rows = graph.displacement_targets(tree, &episode.final_positions);
                 (graph.input, rows)
             }
-            (Task::Forward, Encoding::Full) => {
-                let rows = episode
-                    .final_positions
-                    .iter()
-                    .zip(tree.positions())
-                    .flat_map(|(after, before)| {
-                        let d = after - before;
-                        [d.x as f32, d.y as f32, d.z as f32]
-                    })
-                    .collect();
-                (encode_forward(tree, node, push).expect(valid), rows)
-            }
+            (Task::Forward, Encoding::Full) => (
+                encode_forward(tree, node, push).expect(valid),
+                offsets(&episode.final_positions, tree.positions()),
+            ),
         }
     }
 

@@ -268,6 +268,18 @@ pub fn encode_forward(
     })
 }
 
+/// `to − from` per node, as the models read and write it (3 f32 per node):
+/// a policy's target offsets p′ − p, a forward model's displacements.
+pub fn offsets(to: &[Point3<f64>], from: &[Point3<f64>]) -> Vec<f32> {
+    to.iter()
+        .zip(from)
+        .flat_map(|(a, b)| {
+            let d = a - b;
+            [d.x as f32, d.y as f32, d.z as f32]
+        })
+        .collect()
+}
+
 /// What every forward encoding needs of a push: a non-root node of the
 /// tree and a finite vector.
 pub(crate) fn check_push(
@@ -299,14 +311,7 @@ pub fn encode_policy(tree: &Tree, targets: &[Point3<f64>]) -> Result<GraphInput,
             what: "target position",
         });
     }
-    let nodes = targets
-        .iter()
-        .zip(tree.positions())
-        .flat_map(|(t, p)| {
-            let d = t - p;
-            [d.x as f32, d.y as f32, d.z as f32]
-        })
-        .collect();
+    let nodes = offsets(targets, tree.positions());
     Ok(GraphInput {
         task: Task::Policy,
         n,

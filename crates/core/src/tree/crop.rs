@@ -22,7 +22,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::model::{MAX_NODES, Tree};
 use super::orchard::{OrchardParams, generate_orchard};
-use super::sca::{MIN_GENERATED_NODES, ScaError};
+use super::sca::{ScaError, check_node_count};
 
 /// Size range of the orchard trees crops are cut from.
 pub const CROP_SOURCE_NODES: (usize, usize) = (100, MAX_NODES - 12);
@@ -100,13 +100,7 @@ pub fn crop_around_path(tree: &Tree, n: usize, rng: &mut ChaCha8Rng) -> Tree {
 /// A crop of `n` nodes ([`crop_around_path`]) of an orchard tree whose size
 /// is drawn from [`CROP_SOURCE_NODES`], reproducible from `seed`.
 pub fn generate_crop(n: usize, seed: u64, params: &OrchardParams) -> Result<Tree, ScaError> {
-    if !(MIN_GENERATED_NODES..=MAX_NODES).contains(&n) {
-        return Err(ScaError::NodeCount {
-            got: n,
-            min: MIN_GENERATED_NODES,
-            max: MAX_NODES,
-        });
-    }
+    check_node_count(n, MAX_NODES)?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xC0_FFEE);
     let (lo, hi) = CROP_SOURCE_NODES;
     let source = rng.random_range(lo.max(n)..=hi.max(n));

@@ -31,7 +31,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::model::{MAX_NODES, Tree};
-use super::sca::{MIN_GENERATED_NODES, MIN_NODE_SPACING, ScaError};
+use super::sca::{MIN_NODE_SPACING, ScaError, check_node_count};
 use super::wood::Wood;
 
 /// Generator parameters (SI).
@@ -143,13 +143,7 @@ fn off_axis(axis: &Vector3<f64>, angle: f64, azimuth: f64) -> Vector3<f64> {
 
 /// Grows an orchard tree of exactly `n` nodes from `seed`.
 pub fn generate_orchard(n: usize, seed: u64, p: &OrchardParams) -> Result<Tree, ScaError> {
-    if !(MIN_GENERATED_NODES..=MAX_NODES).contains(&n) {
-        return Err(ScaError::NodeCount {
-            got: n,
-            min: MIN_GENERATED_NODES,
-            max: MAX_NODES,
-        });
-    }
+    check_node_count(n, MAX_NODES)?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for _ in 0..50 {
         if let Some(tree) = attempt(n, p, &mut rng) {

@@ -179,15 +179,23 @@ pub fn tree_seed(base_seed: u64, n: usize, index: u64) -> u64 {
     crate::seed::derive_seed(base_seed, &[n as u64, index])
 }
 
-/// Grows a tree of exactly `n` nodes from `seed`.
-pub fn generate(n: usize, seed: u64, params: &ScaParams) -> Result<Tree, ScaError> {
-    if !(MIN_GENERATED_NODES..=MAX_SCA_NODES).contains(&n) {
-        return Err(ScaError::NodeCount {
+/// Every generator's size check: from [`MIN_GENERATED_NODES`] to its own
+/// largest size.
+pub(super) fn check_node_count(n: usize, max: usize) -> Result<(), ScaError> {
+    if (MIN_GENERATED_NODES..=max).contains(&n) {
+        Ok(())
+    } else {
+        Err(ScaError::NodeCount {
             got: n,
             min: MIN_GENERATED_NODES,
-            max: MAX_SCA_NODES,
-        });
+            max,
+        })
     }
+}
+
+/// Grows a tree of exactly `n` nodes from `seed`.
+pub fn generate(n: usize, seed: u64, params: &ScaParams) -> Result<Tree, ScaError> {
+    check_node_count(n, MAX_SCA_NODES)?;
     params.validate()?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for _ in 0..params.max_attempts {
