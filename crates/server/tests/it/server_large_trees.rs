@@ -280,3 +280,44 @@ fn a_path_deeper_than_a_path_graph_holds_is_refused_by_name() {
     assert_eq!(status, 200, "{plan}");
     assert!(plan["status"].is_string(), "{plan}");
 }
+
+/// Many pushes in one call are each what that push alone gets: the path
+/// graphs of one call differ in size and are batched by size, and every
+/// answer must come back to its own push.
+#[test]
+fn a_batch_of_pushes_answers_each_push_as_alone() {
+    let server = Server::start(&["--models-dir", MODELS]);
+    let tree = generate_orchard(400, 3, &OrchardParams::default()).unwrap();
+    let nodes: Vec<usize> = (1..tree.len()).step_by(23).take(16).collect();
+    let pushes: Vec<Value> = nodes
+        .iter()
+        .map(|&j| {
+            let axis = tree.branch_direction(j).unwrap();
+            xyz(&(axis.cross(&nalgebra::Vector3::z()).normalize() * 0.07))
+        })
+        .collect();
+    let depths: std::collections::BTreeSet<usize> = nodes.iter().map(|&j| tree.depth(j)).collect();
+    assert!(depths.len() >= 5, "path depths {depths:?}");
+    let (status, all) = server.json(
+        "POST",
+        "/v1/forward",
+        &json!({"tree": tree_value(&tree), "contact_nodes": nodes, "pushes": pushes}),
+    );
+    assert_eq!(status, 200, "{all}");
+    for (k, (&node, push)) in nodes.iter().zip(&pushes).enumerate() {
+        let (status, one) = server.json(
+            "POST",
+            "/v1/forward",
+            &json!({"tree": tree_value(&tree), "contact_node": node, "push": push}),
+        );
+        assert_eq!(status, 200, "{one}");
+        let a = all["displacements"][k].as_array().unwrap();
+        let b = one["displacements"][0].as_array().unwrap();
+        for (p, q) in a.iter().zip(b) {
+            for c in 0..3 {
+                let d = p[c].as_f64().unwrap() - q[c].as_f64().unwrap();
+                assert!(d.abs() < 1e-4, "push {k} at node {node}: {d}");
+            }
+        }
+    }
+}
