@@ -11,7 +11,7 @@ use crate::planner::query::{Query, Stance};
 use crate::planner::search::Scored;
 use crate::robot::collision::{Allowed, TreeObstacles};
 use crate::robot::motion::push_motion::{
-    Outcome, PlanOptions, PushPlan, PushSnapshots, execute, reach,
+    Outcome, PlanOptions, PushPlan, PushSnapshots, execute, reach, reachable,
 };
 use crate::robot::motion::rrt::MotionValidator;
 use crate::robot::motion::scene::PlanningScene;
@@ -109,7 +109,7 @@ impl Run<'_> {
     pub fn reach_check(&self, push: &Push) -> Result<(), Outcome> {
         let tree = &self.query.tree;
         match (self.fixed, &self.query.stance) {
-            (Some(f), _) => reach(&f.arm, tree, self.rest, push, &f.start).map(|_| ()),
+            (Some(f), _) => reachable(&f.arm, tree, self.rest, push, &f.start),
             (None, Stance::Region(region)) => {
                 reach_in_region(self.planner, region, tree, self.rest, push)
             }
@@ -263,7 +263,7 @@ pub(super) fn reach_in_region(
     let mut outcome = Outcome::Unreachable;
     for pose in base::proposals(region, tree, push, planner.robot()) {
         let arm = planner.placed_at(&pose.isometry());
-        match reach(&arm, tree, rest, push, &arm.robot.home()) {
+        match reachable(&arm, tree, rest, push, &arm.robot.home()) {
             Ok(_) => return Ok(()),
             Err(o) => outcome = worst_to_best(outcome, o),
         }

@@ -66,7 +66,7 @@ impl Planner {
         let start = start.unwrap_or_else(|| self.robot().home());
         move |push: &Push| match (&fixed, stance) {
             (Some(arm), _) => {
-                crate::robot::motion::push_motion::reach(arm, tree, &rest, push, &start).is_ok()
+                crate::robot::motion::push_motion::reachable(arm, tree, &rest, push, &start).is_ok()
             }
             (None, Stance::Region(region)) => {
                 crate::planner::execute::reach_in_region(self, region, tree, &rest, push).is_ok()

@@ -13,6 +13,7 @@ mod robot_geometry;
 mod robot_mimic;
 mod robot_model;
 mod robot_plan;
+mod robot_reach;
 mod robot_ros;
 mod robot_rrt;
 mod robot_timing;

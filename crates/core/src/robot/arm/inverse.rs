@@ -26,36 +26,53 @@ impl Arm {
         tool: &Isometry3<f64>,
         reference: &JointVector,
     ) -> Vec<JointVector> {
-        let goal = self.tip_goal(tool);
-        let mut solutions: Vec<JointVector> = match &self.solver {
-            Solver::Ur(ur) => {
-                let reference: [f64; 6] = std::array::from_fn(|i| reference[i]);
-                ur.solve(&goal, &reference)
-                    .iter()
-                    .map(|q| JointVector::from_slice(q))
-                    .collect()
-            }
-            Solver::Numeric if !self.within_reach(&goal) => Vec::new(),
-            Solver::Numeric => {
-                let mut rng = ChaCha8Rng::seed_from_u64(0x1c);
-                let mut found: Vec<JointVector> = Vec::new();
-                let starts = std::iter::once(reference.to_vec())
-                    .chain((0..IK_STARTS).map(|_| random_configuration(&self.chain, &mut rng)));
-                for start in starts {
-                    if let Some(q) = self.solve_from(&goal, &start) {
-                        if found.iter().all(|f| f.max_abs_diff(&q) > SAME_SOLUTION) {
-                            found.push(q);
-                        }
-                    }
-                }
-                found
-            }
-        };
+        let mut solutions: Vec<JointVector> = self.ik_solutions(tool, reference).collect();
         solutions.sort_by(|a, b| {
             a.max_abs_diff(reference)
                 .total_cmp(&b.max_abs_diff(reference))
         });
         solutions
+    }
+
+    /// The solutions of [`Self::inverse_kinematics`], distinct, unsorted
+    /// and found as they are asked for: a caller that needs one usable
+    /// solution (is a push reachable at all?) stops the numerical solver's
+    /// starts at the first that serves.
+    pub fn ik_solutions<'a>(
+        &'a self,
+        tool: &Isometry3<f64>,
+        reference: &JointVector,
+    ) -> Box<dyn Iterator<Item = JointVector> + 'a> {
+        let goal = self.tip_goal(tool);
+        match &self.solver {
+            Solver::Ur(ur) => {
+                let reference: [f64; 6] = std::array::from_fn(|i| reference[i]);
+                Box::new(
+                    ur.solve(&goal, &reference)
+                        .into_iter()
+                        .map(|q| JointVector::from_slice(&q)),
+                )
+            }
+            Solver::Numeric if !self.within_reach(&goal) => Box::new(std::iter::empty()),
+            Solver::Numeric => {
+                let mut rng = ChaCha8Rng::seed_from_u64(0x1c);
+                let mut found: Vec<JointVector> = Vec::new();
+                let random =
+                    (0..IK_STARTS).map(move |_| random_configuration(&self.chain, &mut rng));
+                Box::new(
+                    std::iter::once(reference.to_vec())
+                        .chain(random)
+                        .filter_map(move |start| self.solve_from(&goal, &start))
+                        .filter(move |q| {
+                            let new = found.iter().all(|f| f.max_abs_diff(q) > SAME_SOLUTION);
+                            if new {
+                                found.push(*q);
+                            }
+                            new
+                        }),
+                )
+            }
+        }
     }
 
     /// The configuration nearest `reference` that puts the tool at `tool`,

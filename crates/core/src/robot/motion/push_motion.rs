@@ -185,10 +185,10 @@ fn near_contact(tree: &Tree, node: usize) -> Allowed {
 }
 
 /// The cheap test of whether the arm can carry out `push` at all, before
-/// any simulation or RRT* (tens of µs): the pre-contact pose has IK
-/// solutions within the joint limits, some are collision-free, and from
-/// some of those the straight push at constant tool orientation stays on
-/// one IK branch. Returns those pre-contact configurations, or why none.
+/// any simulation or RRT*: the pre-contact pose has IK solutions within
+/// the joint limits, some are collision-free, and from some of those the
+/// straight push at constant tool orientation stays on one IK branch.
+/// Returns every such pre-contact configuration, or why none.
 pub fn reach(
     model: &CollisionModel,
     tree: &Tree,
@@ -196,49 +196,80 @@ pub fn reach(
     push: &Push,
     start: &Config,
 ) -> Result<Vec<Config>, Outcome> {
+    reach_up_to(model, tree, obstacles, push, start, usize::MAX)
+}
+
+/// [`reach`] stopped at the first pre-contact configuration that serves:
+/// whether a push is reachable, asked of every candidate and placement a
+/// search looks at, without solving IK from every start of a numerical
+/// chain (most of a plan's time on such arms).
+pub fn reachable(
+    model: &CollisionModel,
+    tree: &Tree,
+    obstacles: &TreeObstacles,
+    push: &Push,
+    start: &Config,
+) -> Result<(), Outcome> {
+    reach_up_to(model, tree, obstacles, push, start, 1).map(|_| ())
+}
+
+/// Up to `wanted` usable pre-contact configurations, or the furthest any
+/// got (`unreachable`, `goal_in_collision`, `push_infeasible`).
+fn reach_up_to(
+    model: &CollisionModel,
+    tree: &Tree,
+    obstacles: &TreeObstacles,
+    push: &Push,
+    start: &Config,
+    wanted: usize,
+) -> Result<Vec<Config>, Outcome> {
     if push.node == 0 || push.node >= tree.len() {
         return Err(Outcome::InvalidCandidate);
     }
     let poses = pre_contact_poses(tree, push).ok_or(Outcome::InvalidCandidate)?;
-    let goals: Vec<Config> = poses
-        .iter()
-        .flat_map(|p| model.robot.inverse_kinematics(p, start))
-        .collect();
-    if goals.is_empty() {
-        return Err(Outcome::Unreachable);
-    }
     let scene = PlanningScene::new(model, obstacles, near_contact(tree, push.node));
-    // A redundant arm's colliding solutions swing along their self-motion
-    // to free ones where they can.
-    let free: Vec<Config> = goals
-        .into_iter()
-        .flat_map(|g| {
-            if scene.config_valid(&g) {
-                vec![g]
-            } else {
-                model
-                    .robot
-                    .self_motions(&g, &SELF_MOTION_SWINGS)
-                    .into_iter()
-                    .filter(|q| scene.config_valid(q))
-                    .collect()
-            }
-        })
-        .collect();
-    if free.is_empty() {
-        return Err(Outcome::GoalInCollision);
-    }
     let direction = push.vector.normalize();
     let travel = push.vector.norm() + APPROACH_OFFSET;
     let anywhere = |_: &Config, _: &Config, _: f64| true;
-    let feasible: Vec<Config> = free
-        .into_iter()
-        .filter(|g| push_line(&model.robot, &anywhere, g, &direction, travel).is_some())
-        .collect();
-    if feasible.is_empty() {
-        return Err(Outcome::PushInfeasible);
+    let mut outcome = Outcome::Unreachable;
+    let mut feasible: Vec<Config> = Vec::new();
+    for goal in poses
+        .iter()
+        .flat_map(|p| model.robot.ik_solutions(p, start))
+    {
+        // A redundant arm's colliding solutions swing along their
+        // self-motion to free ones where they can.
+        let free: Vec<Config> = if scene.config_valid(&goal) {
+            vec![goal]
+        } else {
+            model
+                .robot
+                .self_motions(&goal, &SELF_MOTION_SWINGS)
+                .into_iter()
+                .filter(|q| scene.config_valid(q))
+                .collect()
+        };
+        if free.is_empty() {
+            if outcome == Outcome::Unreachable {
+                outcome = Outcome::GoalInCollision;
+            }
+            continue;
+        }
+        outcome = Outcome::PushInfeasible;
+        for g in free {
+            if push_line(&model.robot, &anywhere, &g, &direction, travel).is_some() {
+                feasible.push(g);
+                if feasible.len() >= wanted {
+                    return Ok(feasible);
+                }
+            }
+        }
     }
-    Ok(feasible)
+    if feasible.is_empty() {
+        Err(outcome)
+    } else {
+        Ok(feasible)
+    }
 }
 
 /// Carries out a reachable push: checks the straight push from each of
