@@ -83,6 +83,8 @@ pub fn solve(
     };
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let reference = DVector::from_column_slice(reference);
+    let mut held = vec![false; n];
+    let mut step = DVector::zeros(n);
     for start in 0..options.restarts.max(1) {
         let mut q = if start == 0 {
             reference.clone()
@@ -107,42 +109,43 @@ pub fn solve(
                 break;
             }
             recent[slot] = cost;
-            let e = error;
             // Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e, and for a redundant chain a pull
             // toward the reference in the null space of J. A joint at a
             // limit that the step would push past is held there and the
             // step solved again without it (an active set): clamping alone
             // stalls the solver on poses whose solutions lie near limits.
-            let mut held = vec![false; n];
-            let mut step = DVector::zeros(n);
+            // Built column by column on 6-vectors (J is stored by columns):
+            // the solver's time is most of a plan's on numerical-IK arms.
+            let column = |k: usize| Vector6::from_column_slice(&jac.as_slice()[6 * k..6 * k + 6]);
+            held.fill(false);
+            step.fill(0.0);
             for _ in 0..n.min(4) {
-                // The Jacobian with the held joints' columns zeroed, and
-                // J Jᵀ + λ² I (6 × 6, symmetric positive definite).
-                let column = |r: usize, k: usize| if held[k] { 0.0 } else { jac[(r, k)] };
-                let jjt = Matrix6::from_fn(|r, c| {
-                    (0..n).map(|k| column(r, k) * column(c, k)).sum::<f64>()
-                        + if r == c { lambda * lambda } else { 0.0 }
-                });
+                // J Jᵀ + λ² I over the free joints (6 × 6, symmetric
+                // positive definite).
+                let mut jjt = Matrix6::from_diagonal_element(lambda * lambda);
+                for k in (0..n).filter(|&k| !held[k]) {
+                    let c = column(k);
+                    jjt += c * c.transpose();
+                }
                 let Some(cholesky) = jjt.cholesky() else {
                     break;
                 };
-                let transpose_times = |y: &Vector6<f64>| {
-                    DVector::from_fn(n, |k, _| (0..6).map(|r| column(r, k) * y[r]).sum::<f64>())
-                };
-                step = transpose_times(&cholesky.solve(&e));
+                let y = cholesky.solve(&error);
+                for k in 0..n {
+                    step[k] = if held[k] { 0.0 } else { column(k).dot(&y) };
+                }
                 if n > 6 {
                     // (I − J⁺J) v = v − Jᵀ (J Jᵀ + λ² I)⁻¹ J v, with the
                     // held joints left where they are.
-                    let v = (&reference - &q) * options.null_space_gain;
-                    let jv =
-                        Vector6::from_fn(|r, _| (0..n).map(|k| column(r, k) * v[k]).sum::<f64>());
-                    let mut null_step = v - transpose_times(&cholesky.solve(&jv));
-                    for (k, h) in held.iter().enumerate() {
-                        if *h {
-                            null_step[k] = 0.0;
-                        }
+                    let mut jv = Vector6::zeros();
+                    for k in (0..n).filter(|&k| !held[k]) {
+                        jv += column(k) * ((reference[k] - q[k]) * options.null_space_gain);
                     }
-                    step += null_step;
+                    let z = cholesky.solve(&jv);
+                    for k in (0..n).filter(|&k| !held[k]) {
+                        step[k] +=
+                            (reference[k] - q[k]) * options.null_space_gain - column(k).dot(&z);
+                    }
                 }
                 let mut changed = false;
                 for (k, (lo, hi)) in limits.iter().enumerate() {
@@ -157,7 +160,7 @@ pub fn solve(
                     break;
                 }
             }
-            let mut candidate = &q + step;
+            let mut candidate = &q + &step;
             clamp(&mut candidate);
             let (p, j) = chain.jacobian(candidate.as_slice());
             let err = pose_error(&p, target);

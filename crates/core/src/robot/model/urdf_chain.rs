@@ -350,45 +350,42 @@ impl Chain {
     /// base frame). A mimic joint adds its multiplier times its own column
     /// to the variable it follows.
     pub fn jacobian(&self, q: &[f64]) -> (Isometry3<f64>, DMatrix<f64>) {
-        // Per moving joint: its gain, variable, origin and axis (base frame).
-        struct Column {
-            gain: f64,
-            variable: usize,
-            origin: Vector3<f64>,
-            axis: Vector3<f64>,
-            kind: JointKind,
-        }
-        let mut columns: Vec<Column> = Vec::new();
+        // A revolute joint's column is (a × (tip − o), a) for its axis a
+        // through o, = (a × tip + o × a, a): linear in what each joint
+        // adds, so one pass accumulates a's (angular rows) and o × a
+        // (linear rows) per variable, and the tip, known only at the end,
+        // is crossed in once per column. A prismatic joint adds its axis
+        // to the linear rows alone.
+        let mut jac = DMatrix::zeros(6, self.dof());
         let mut pose = Isometry3::identity();
         for j in &self.joints {
             let frame = pose * j.origin;
-            let axis = frame.rotation * j.axis.into_inner();
             let (gain, variable) = match (j.variable, j.mimic) {
                 (Some(v), _) => (1.0, Some(v)),
                 (None, Some(m)) => (m.multiplier, Some(m.variable)),
                 _ => (0.0, None),
             };
-            if let Some(variable) = variable {
-                columns.push(Column {
-                    gain,
-                    variable,
-                    origin: frame.translation.vector,
-                    axis,
-                    kind: j.kind,
-                });
+            if let Some(v) = variable {
+                let axis = frame.rotation * j.axis.into_inner() * gain;
+                let (linear, angular) = match j.kind {
+                    JointKind::Prismatic => (axis, Vector3::zeros()),
+                    _ => (frame.translation.vector.cross(&axis), axis),
+                };
+                let mut c = jac.column_mut(v);
+                for k in 0..3 {
+                    c[k] += linear[k];
+                    c[k + 3] += angular[k];
+                }
             }
             pose = frame * Self::motion(j, self.value(j, q));
         }
         let tip = pose.translation.vector;
-        let mut jac = DMatrix::zeros(6, self.dof());
-        for c in columns {
-            let (linear, angular) = match c.kind {
-                JointKind::Prismatic => (c.axis, Vector3::zeros()),
-                _ => (c.axis.cross(&(tip - c.origin)), c.axis),
-            };
+        for v in 0..self.dof() {
+            let mut c = jac.column_mut(v);
+            let a = Vector3::new(c[3], c[4], c[5]);
+            let moved = a.cross(&tip);
             for k in 0..3 {
-                jac[(k, c.variable)] += c.gain * linear[k];
-                jac[(k + 3, c.variable)] += c.gain * angular[k];
+                c[k] += moved[k];
             }
         }
         (pose, jac)
