@@ -12,6 +12,7 @@ mod onnx_parity;
 mod planner;
 mod readme_examples;
 mod robot_arms;
+mod robot_bare_arms;
 mod server_faults;
 mod server_models;
 mod tasks;

@@ -124,9 +124,9 @@ fn a_redundant_arm_swings_along_its_self_motion() {
 /// An arm to plan with, and where its URDF is for the independent
 /// kinematics (`@EXAMPLE_ROBOT_DATA@` and `@PYBULLET_DATA@` filled in by
 /// the Python side).
-struct Case {
-    arm: Arm,
-    urdf: String,
+pub(crate) struct Case {
+    pub arm: Arm,
+    pub urdf: String,
 }
 
 /// The shipped arms, and pybullet's Franka Panda URDF (meshes fitted now,
@@ -237,10 +237,15 @@ fn paddle_ur10() -> Case {
 /// one into a ROS 2 `JointTrajectory` serialised to CDR.
 #[test]
 fn every_arm_plans_trajectories_its_controller_can_run() {
+    plans_trajectories_a_controller_can_run(cases(), Strategy::Model);
+}
+
+/// The checks above on each of `cases`, planning with `strategy`.
+pub(crate) fn plans_trajectories_a_controller_can_run(cases: Vec<Case>, strategy: Strategy) {
     let set = crate::planner::models();
     let (policy, forward) = crate::planner::policy_and_forward(&set);
     let mut pin_cases = Vec::new();
-    for case in cases() {
+    for case in cases {
         let name = case.arm.name().to_owned();
         let planner = Planner::new(CollisionModel::new(case.arm.clone().with_base(PAPER_BASE)));
         let mut planned = 0;
@@ -248,7 +253,7 @@ fn every_arm_plans_trajectories_its_controller_can_run() {
         for seed in 1..=6 {
             let (tree, targets) = crate::common::episode(12, seed);
             let mut q = Query::new(tree, targets);
-            q.strategy = Strategy::Model;
+            q.strategy = strategy;
             q.budget = Duration::from_secs(3);
             q.stance = Stance::Region(treemanip::eval::plan::evaluation_region());
             let plan = planner.plan(&q, policy, Some(forward)).unwrap();

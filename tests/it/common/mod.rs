@@ -8,7 +8,8 @@ pub mod server;
 mod support;
 #[allow(unused_imports)]
 pub use support::{
-    assert_ros2_round_trip, episode, python_has, python_json, random_tree_and_pushes, temp_dir,
+    assert_ros2_round_trip, episode, python_has, python_json, random_tree_and_pushes, robot_data,
+    temp_dir,
 };
 
 use std::process::{Command, Output};
