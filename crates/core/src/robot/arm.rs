@@ -33,7 +33,7 @@ mod self_motion;
 mod stance;
 pub mod tool_line;
 pub use base::{BaseStance, PAPER_BASE};
-pub use stance::{PROBE_PUSHES, UR5_REACH};
+pub use stance::{PROBE_PUSHES, STANCES, UR5_REACH};
 
 /// World poses of the links, in the arm's link order: on the stack for
 /// arms of up to 24 links, since the collision checker computes them for

@@ -61,6 +61,10 @@ pub struct CheckReport {
     pub stance: Option<BaseStance>,
     pub pushes_kinematic: usize,
     pub pushes_free: usize,
+    /// The stances a mobile base tries ([`Arm::stances`]) and how many of
+    /// the test pushes one of them carries out (kinematics).
+    pub stances: usize,
+    pub pushes_any_stance: usize,
     pub warnings: Vec<String>,
 }
 
@@ -156,6 +160,11 @@ pub fn check(arm: &Arm, samples: usize, seed: u64) -> CheckReport {
         ),
         None => (0, 0),
     };
+    let stances = robot.stances();
+    let pushes_any_stance = stances
+        .iter()
+        .fold(0, |m, s| m | robot.push_mask(s))
+        .count_ones() as usize;
     let mut report = CheckReport {
         name: robot.name().to_owned(),
         dof: robot.dof(),
@@ -178,6 +187,8 @@ pub fn check(arm: &Arm, samples: usize, seed: u64) -> CheckReport {
         stance,
         pushes_kinematic,
         pushes_free,
+        stances: stances.len(),
+        pushes_any_stance,
         warnings: Vec::new(),
     };
     report.warnings = warnings(&report);
@@ -289,6 +300,11 @@ impl fmt::Display for CheckReport {
             )?,
             None => writeln!(f, "no stance")?,
         }
+        writeln!(
+            f,
+            "stances tried: {}; test pushes carried out from one of them: {} of {PROBE_PUSHES}",
+            self.stances, self.pushes_any_stance
+        )?;
         for w in &self.warnings {
             writeln!(f, "warning: {w}")?;
         }

@@ -6,6 +6,7 @@
 
 use std::path::PathBuf;
 
+use treemanip_core::robot::arm::{PROBE_PUSHES, STANCES};
 use treemanip_core::robot::catalog::{load, load_description};
 use treemanip_core::robot::check::check;
 use treemanip_core::robot::model::self_pairs::DisableReason;
@@ -219,4 +220,44 @@ fn a_robot_link_named_like_the_tool_keeps_its_name() {
     assert!(names.contains(&"treemanip_gripper"), "{names:?}");
     let ours = arm.gripper_link().unwrap();
     assert_eq!(names[ours], "treemanip_gripper");
+}
+
+/// An arm with a narrow workspace keeps a stance for each direction it can
+/// push somewhere: the Unitree Z1 (bare URDF) pushes level from one height
+/// and up or down from others, so the six best stances by count leave test
+/// pushes that another stance carries out; the UR10, which pushes every
+/// way from its best stance, keeps six.
+#[test]
+fn a_narrow_arm_keeps_a_stance_for_each_direction_it_can_push() {
+    let Some(erd) = crate::common::robot_data() else {
+        return;
+    };
+    let z1 = spec(&format!(
+        "z1={}/z1_description/urdf/z1.urdf,tip=link06",
+        erd.display()
+    ));
+    let arm = load(&z1, &[erd.clone(), erd.join("../..")]).unwrap();
+    let report = check(&arm, 100, 1);
+    assert!(report.stances > STANCES, "{report}");
+    assert!(
+        report.pushes_any_stance > report.pushes_kinematic,
+        "{report}"
+    );
+    // Every kept stance carries out a test push no better one does.
+    let stances = arm.stances();
+    let mut covered = stances[..STANCES]
+        .iter()
+        .fold(0, |m, s| m | arm.push_mask(s));
+    for s in &stances[STANCES..] {
+        let mask = arm.push_mask(s);
+        assert!(mask & !covered != 0, "{s:?} adds nothing");
+        covered |= mask;
+    }
+    let ur10 = spec(&format!(
+        "ur10ri={}/ur_description/urdf/ur10_robot.urdf,tip=tool0",
+        erd.display()
+    ));
+    let arm = load(&ur10, &[erd]).unwrap();
+    assert_eq!(arm.stances().len(), STANCES);
+    assert_eq!(arm.push_score(&arm.stances()[0]), PROBE_PUSHES);
 }

@@ -13,12 +13,15 @@
 //! So each arm scores a grid of stances ([`STAND_OFFS`] × [`HEIGHTS`],
 //! scaled by its reach) by the share of [`PROBE_PUSHES`] test pushes (the
 //! tool level, tilted up or down, turned left or right, its slot upright or
-//! level) whose pre-contact pose has an IK solution from which the
+//! level, either way round) whose pre-contact pose has an IK solution from which the
 //! straight push stays on one branch, as the planner's push check asks (no
-//! tree: kinematics only), and keeps the best [`STANCES`]. Ties keep the
-//! UR5's own stances first, so arms that reach everywhere (the URs) stand
-//! where the UR5 always has. The scores are computed once per arm, on the
+//! tree: kinematics only), and keeps the best [`STANCES`], then more while
+//! they carry out test pushes none kept does ([`keep_stances`]). Ties keep
+//! the UR5's own stances first, so arms that reach everywhere (the URs)
+//! stand where the UR5 always has. The scores are computed once per arm, on the
 //! first base-region plan (about 0.2 s for a 7-joint arm).
+
+use std::f64::consts::PI;
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -89,20 +92,23 @@ impl Arm {
     pub fn stances(&self) -> &[BaseStance] {
         self.stances.get_or_init(|| {
             let scale = self.reach() / UR5_REACH;
-            let mut scored: Vec<(usize, BaseStance)> = candidates(scale)
+            let candidates: Vec<(u32, BaseStance)> = candidates(scale)
                 .into_iter()
-                .map(|s| (self.push_score(&s), s))
+                .map(|s| {
+                    (
+                        self.push_mask_with(&s, &|_: &JointVector, _: &JointVector, _: f64| true),
+                        s,
+                    )
+                })
                 .collect();
-            // Stable: equal scores keep the candidates' order.
-            scored.sort_by_key(|s| std::cmp::Reverse(s.0));
-            scored.into_iter().take(STANCES).map(|(_, s)| s).collect()
+            keep_stances(candidates)
         })
     }
 
     /// How many of the [`PROBE_PUSHES`] test pushes this arm can carry
     /// out from `stance` (base upright at its own pose, facing +x).
     pub fn push_score(&self, stance: &BaseStance) -> usize {
-        self.push_score_with(stance, &|_: &JointVector, _: &JointVector, _: f64| true)
+        self.push_mask(stance).count_ones() as usize
     }
 
     /// As [`Self::push_score`], with every configuration of the push (the
@@ -113,24 +119,72 @@ impl Arm {
         stance: &BaseStance,
         valid: &dyn Fn(&JointVector, &JointVector, f64) -> bool,
     ) -> usize {
+        self.push_mask_with(stance, valid).count_ones() as usize
+    }
+
+    /// Which of the test pushes (bit k: the k-th of [`PROBE_PUSHES`])
+    /// the arm carries out from `stance`, kinematically.
+    pub fn push_mask(&self, stance: &BaseStance) -> u32 {
+        self.push_mask_with(stance, &|_: &JointVector, _: &JointVector, _: f64| true)
+    }
+
+    /// As [`Self::push_mask`], each configuration also passing `valid`.
+    fn push_mask_with(
+        &self,
+        stance: &BaseStance,
+        valid: &dyn Fn(&JointVector, &JointVector, f64) -> bool,
+    ) -> u32 {
         let home = self.home();
         let grip = Vector3::new(stance.stand_off, 0.0, stance.height);
-        probe_rotations()
-            .iter()
-            .filter(|rotation| {
-                let z = *rotation * Vector3::z();
-                let start = self.base
-                    * Isometry3::from_parts(
-                        Translation3::from(grip - z * APPROACH_OFFSET),
-                        **rotation,
-                    );
-                let direction = self.base.rotation * z;
-                self.inverse_kinematics(&start, &home).iter().any(|q| {
-                    valid(q, q, 0.0)
-                        && push_line(self, valid, q, &direction, PROBE_PUSH + APPROACH_OFFSET)
+        let mut mask = 0;
+        for (k, rotation) in probe_rotations().iter().enumerate() {
+            let z = rotation * Vector3::z();
+            let start = self.base
+                * Isometry3::from_parts(Translation3::from(grip - z * APPROACH_OFFSET), *rotation);
+            let direction = self.base.rotation * z;
+            // Either way round in the slot, as the planner tries a push
+            // (`pre_contact_poses`): a last joint of less than a full turn
+            // reaches only one of them.
+            let flipped = start * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), PI);
+            let carried = [start, flipped].iter().any(|pose| {
+                self.ik_solutions(pose, &home).any(|q| {
+                    valid(&q, &q, 0.0)
+                        && push_line(self, valid, &q, &direction, PROBE_PUSH + APPROACH_OFFSET)
                             .is_some()
                 })
-            })
-            .count()
+            });
+            if carried {
+                mask |= 1 << k;
+            }
+        }
+        mask
     }
+}
+
+/// The best [`STANCES`] by score (ties in the candidates' order), then,
+/// while some test push that a candidate carries out is carried out by
+/// none kept, the candidate adding most of them: an arm that pushes in
+/// every direction from one stance (a UR) keeps the six best, and an arm
+/// with a narrow workspace (the Unitree Z1 pushes level from one height
+/// and up or down from others) also keeps a stance for each direction.
+fn keep_stances(mut scored: Vec<(u32, BaseStance)>) -> Vec<BaseStance> {
+    // Stable: equal scores keep the candidates' order.
+    scored.sort_by_key(|s| std::cmp::Reverse(s.0.count_ones()));
+    let mut rest = scored.split_off(STANCES.min(scored.len()));
+    let mut covered = scored.iter().fold(0, |m, s| m | s.0);
+    loop {
+        let best = rest
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (i, (s.0 & !covered).count_ones()))
+            .filter(|(_, gain)| *gain > 0)
+            .max_by_key(|&(i, gain)| (gain, std::cmp::Reverse(i)));
+        let Some((i, _)) = best else {
+            break;
+        };
+        let s = rest.remove(i);
+        covered |= s.0;
+        scored.push(s);
+    }
+    scored.into_iter().map(|(_, s)| s).collect()
 }
