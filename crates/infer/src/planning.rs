@@ -3,7 +3,7 @@
 //! [`treemanip_core::planner::Predictor`]).
 
 use nalgebra::Point3;
-use treemanip_core::graph::path::{Encoding, PATH_GRAPH_MAX_NODES};
+use treemanip_core::graph::path::{Encoding, path_fits};
 use treemanip_core::planner::{Candidate, ContactPolicy, PredictError, Predictor};
 use treemanip_core::sim::Push;
 use treemanip_core::tree::Tree;
@@ -24,17 +24,15 @@ impl ContactPolicy for ServedModel {
 }
 
 /// A forward model: one batched inference for all the pushes it can read
-/// (a path model reads paths of at most
-/// [`PATH_GRAPH_MAX_NODES`] nodes; deeper pushes get no prediction).
+/// (a path model reads the pushes whose path fits one path graph,
+/// [`path_fits`]; deeper pushes get no prediction).
 impl Predictor for ServedModel {
     fn final_positions(
         &self,
         tree: &Tree,
         pushes: &[Push],
     ) -> Result<Vec<Option<Vec<Point3<f64>>>>, PredictError> {
-        let readable = |p: &Push| {
-            self.card.encoding != Encoding::Path || tree.depth(p.node) < PATH_GRAPH_MAX_NODES
-        };
+        let readable = |p: &Push| self.card.encoding != Encoding::Path || path_fits(tree, p.node);
         let actions: Vec<_> = pushes
             .iter()
             .filter(|p| readable(p))

@@ -97,6 +97,17 @@ pub struct PathGraph {
 /// least turn, as for a side node in line with its path branch.
 pub const PATH_GRAPH_MAX_NODES: usize = crate::tree::FULL_GRAPH_MAX_NODES;
 
+/// Most joints from the root to a contact that one path graph holds (its
+/// nodes less the contact's own).
+pub const PATH_MAX_JOINTS: usize = PATH_GRAPH_MAX_NODES - 1;
+
+/// Whether one path graph holds a push at `node`: the one test behind the
+/// encoder's refusal, the domain check's `path_joints` and the planner's
+/// skipping of pushes a path model cannot read.
+pub fn path_fits(tree: &Tree, node: usize) -> bool {
+    tree.depth(node) <= PATH_MAX_JOINTS
+}
+
 /// Smallest angle (rad) between a side node's direction from its path node
 /// and the path branch: closer to collinear, the pair says little about
 /// the branch's twist.
@@ -137,16 +148,16 @@ pub fn encode_forward_path(
 ) -> Result<PathGraph, EncodeError> {
     super::check_push(tree, contact, push)?;
     let n = tree.len();
+    if !path_fits(tree, contact) {
+        return Err(EncodeError::PathTooDeep {
+            node: contact,
+            joints: tree.depth(contact),
+            max: PATH_MAX_JOINTS,
+        });
+    }
     let mut nodes = tree.path_to_root(contact);
     nodes.reverse();
     let path_len = nodes.len();
-    if path_len > PATH_GRAPH_MAX_NODES {
-        return Err(EncodeError::PathTooDeep {
-            node: contact,
-            joints: path_len - 1,
-            max: PATH_GRAPH_MAX_NODES - 1,
-        });
-    }
     let mut hangs_from = Vec::new();
     // Side branches from the contact towards the root, while they fit.
     for k in (1..path_len).rev() {

@@ -22,7 +22,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::graph::log_stiffness_ratios;
-use crate::graph::path::{Encoding, PATH_GRAPH_MAX_NODES};
+use crate::graph::path::{Encoding, PATH_MAX_JOINTS, path_fits};
 use crate::tree::Tree;
 
 /// Sizes the paper evaluates on (trained on 11…19, zero-shot to 30).
@@ -251,21 +251,19 @@ impl Domain {
     }
 
     /// A path model's check of the branches a push at `node` moves: the
-    /// path's depth against what one path graph holds
-    /// ([`PATH_GRAPH_MAX_NODES`]), and each branch's κ relative to the
+    /// path's depth against what one path graph holds ([`path_fits`]), and each branch's κ relative to the
     /// path's mean (what the model reads) against the trained range. Empty
     /// for the paper's encoding.
     pub fn check_path(&self, tree: &Tree, node: usize) -> Vec<Violation> {
         if self.encoding != Encoding::Path || node == 0 || node >= tree.len() {
             return Vec::new();
         }
-        let joints = tree.depth(node);
-        if joints >= PATH_GRAPH_MAX_NODES {
+        if !path_fits(tree, node) {
             return vec![Violation {
                 quantity: "path_joints",
-                value: joints as f64,
+                value: tree.depth(node) as f64,
                 min: 1.0,
-                max: (PATH_GRAPH_MAX_NODES - 1) as f64,
+                max: PATH_MAX_JOINTS as f64,
                 node: Some(node),
                 refused: true,
             }];
