@@ -115,9 +115,9 @@ pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push, arm: &Arm) -> Ve
 }
 
 /// Start configurations tried when the request gives none: the arm's home,
-/// then (for UR kinematics) the arm folded up and back from the tree, or
-/// (any other arm) home turned about the first joint away from the tree (a
-/// half turn, or as far as the joint allows) or a quarter turn either way.
+/// then (for UR kinematics) the arm folded up and back from the tree, then
+/// (any arm) home turned about the first joint away from the tree (a half
+/// turn, or as far as the joint allows) or a quarter turn either way.
 pub fn tucked_starts(arm: &crate::robot::Arm) -> Vec<Config> {
     use std::f64::consts::{FRAC_PI_2, PI};
     let home = arm.home();
@@ -139,14 +139,15 @@ pub fn tucked_starts(arm: &crate::robot::Arm) -> Vec<Config> {
             -FRAC_PI_2,
             0.0,
         ]));
-    } else {
-        let (lo, hi) = arm.limits()[0];
-        for turn in [PI, -PI, FRAC_PI_2, -FRAC_PI_2] {
-            let mut q = home;
-            q[0] = (q[0] + turn).clamp(lo, hi);
-            if out.iter().all(|o| o.max_abs_diff(&q) > 0.1) {
-                out.push(q);
-            }
+    }
+    // Every arm: home turned about its first joint (a small arm's base
+    // stands close enough that its home and folds can all touch the tree).
+    let (lo, hi) = arm.limits()[0];
+    for turn in [PI, -PI, FRAC_PI_2, -FRAC_PI_2] {
+        let mut q = home;
+        q[0] = (q[0] + turn).clamp(lo, hi);
+        if out.iter().all(|o| o.max_abs_diff(&q) > 0.1) {
+            out.push(q);
         }
     }
     out.retain(|q| arm.within_limits(q));
