@@ -94,12 +94,7 @@ impl Arm {
             let scale = self.reach() / UR5_REACH;
             let candidates: Vec<(u32, BaseStance)> = candidates(scale)
                 .into_iter()
-                .map(|s| {
-                    (
-                        self.push_mask_with(&s, &|_: &JointVector, _: &JointVector, _: f64| true),
-                        s,
-                    )
-                })
+                .map(|s| (self.push_mask(&s), s))
                 .collect();
             keep_stances(candidates)
         })
