@@ -9,11 +9,11 @@ use crate::planner::objective::SATISFIED;
 use crate::planner::placed::{Placed, Planner};
 use crate::planner::query::{Query, Stance};
 use crate::planner::search::Scored;
-use crate::robot::collision::{Allowed, TreeObstacles};
+use crate::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use crate::robot::motion::push_motion::{
     Outcome, PlanOptions, PushPlan, PushSnapshots, execute, reach, reachable,
 };
-use crate::robot::motion::rrt::MotionValidator;
+use crate::robot::motion::rrt::{Config, MotionValidator};
 use crate::robot::motion::scene::PlanningScene;
 use crate::sim::Push;
 use crate::sim::loads::PushLoads;
@@ -107,14 +107,15 @@ impl Run<'_> {
 
     /// [`Self::reachable`], or the furthest any placement got.
     pub fn reach_check(&self, push: &Push) -> Result<(), Outcome> {
-        let tree = &self.query.tree;
-        match (self.fixed, &self.query.stance) {
-            (Some(f), _) => reachable(&f.arm, tree, self.rest, push, &f.start),
-            (None, Stance::Region(region)) => {
-                reach_in_region(self.planner, region, tree, self.rest, push)
-            }
-            (None, Stance::Fixed(_)) => Err(Outcome::Unreachable),
-        }
+        let fixed = self.fixed.as_ref().map(|f| (&f.arm, &f.start));
+        reach_at(
+            self.planner,
+            fixed,
+            &self.query.stance,
+            &self.query.tree,
+            self.rest,
+            push,
+        )
     }
 
     /// Tries to carry out `push` from each placement; records the attempt.
@@ -251,9 +252,29 @@ pub struct SimulatedHold {
     pub clearance: Option<f64>,
 }
 
+/// Whether the arm can reach `push`: placed at `fixed` (from its start
+/// configuration), else from some placement a base-region `stance`
+/// proposes; or the furthest any placement got. The one reach test of a
+/// planning call ([`Run::reach_check`]) and of the pushes proposed before
+/// one ([`Planner::reach_test`]).
+pub(super) fn reach_at(
+    planner: &Planner,
+    fixed: Option<(&CollisionModel, &Config)>,
+    stance: &Stance,
+    tree: &crate::tree::Tree,
+    rest: &TreeObstacles,
+    push: &Push,
+) -> Result<(), Outcome> {
+    match (fixed, stance) {
+        (Some((arm, start)), _) => reachable(arm, tree, rest, push, start),
+        (None, Stance::Region(region)) => reach_in_region(planner, region, tree, rest, push),
+        (None, Stance::Fixed(_)) => Err(Outcome::Unreachable),
+    }
+}
+
 /// Whether the arm can reach `push` from some placement the base `region`
 /// proposes for it (from home), or the furthest any placement got.
-pub(super) fn reach_in_region(
+fn reach_in_region(
     planner: &Planner,
     region: &super::base::BaseRegion,
     tree: &crate::tree::Tree,

@@ -64,14 +64,9 @@ impl Planner {
             Stance::Region(_) => None,
         };
         let start = start.unwrap_or_else(|| self.robot().home());
-        move |push: &Push| match (&fixed, stance) {
-            (Some(arm), _) => {
-                crate::robot::motion::push_motion::reachable(arm, tree, &rest, push, &start).is_ok()
-            }
-            (None, Stance::Region(region)) => {
-                crate::planner::execute::reach_in_region(self, region, tree, &rest, push).is_ok()
-            }
-            (None, Stance::Fixed(_)) => false,
+        move |push: &Push| {
+            let placed = fixed.as_ref().map(|arm| (arm, &start));
+            crate::planner::execute::reach_at(self, placed, stance, tree, &rest, push).is_ok()
         }
     }
 

@@ -106,8 +106,9 @@ pub struct Arm {
     gripper: Option<usize>,
     /// World pose of the chain's base link.
     pub base: Isometry3<f64>,
-    /// Where a mobile base stands for a push ([`Arm::stances`]).
-    stances: std::sync::OnceLock<Vec<BaseStance>>,
+    /// Where a mobile base stands for a push ([`Arm::stances`]), and the
+    /// test pushes one of them carries out (a mask of [`PROBE_PUSHES`]).
+    stances: std::sync::OnceLock<(Vec<BaseStance>, u32)>,
 }
 
 impl Arm {

@@ -161,10 +161,7 @@ pub fn check(arm: &Arm, samples: usize, seed: u64) -> CheckReport {
         None => (0, 0),
     };
     let stances = robot.stances();
-    let pushes_any_stance = stances
-        .iter()
-        .fold(0, |m, s| m | robot.push_mask(s))
-        .count_ones() as usize;
+    let pushes_any_stance = robot.stance_coverage();
     let mut report = CheckReport {
         name: robot.name().to_owned(),
         dof: robot.dof(),

@@ -21,13 +21,11 @@
 //! stand where the UR5 always has. The scores are computed once per arm, on the
 //! first base-region plan (about 0.2 s for a 7-joint arm).
 
-use std::f64::consts::PI;
-
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use crate::robot::arm::Arm;
 use crate::robot::arm::base::BaseStance;
-use crate::robot::arm::tool_line::{APPROACH_OFFSET, push_line};
+use crate::robot::arm::tool_line::{APPROACH_OFFSET, either_way_round, push_line};
 use crate::robot::model::joint_vector::JointVector;
 
 /// The built-in UR5's [`Arm::reach`] (m): the distances below are for it,
@@ -90,6 +88,19 @@ impl Arm {
     /// The stances a mobile base tries for this arm, best first (see the
     /// module's documentation); computed on the first call.
     pub fn stances(&self) -> &[BaseStance] {
+        &self.kept_stances().0
+    }
+
+    /// How many of the [`PROBE_PUSHES`] test pushes one of
+    /// [`Self::stances`] carries out: all of them for an arm that pushes
+    /// every way from where it stands (every 6-7 joint arm of
+    /// `example-robot-data` and `pybullet_data` but the Unitree Z1, whose
+    /// narrow wrist leaves 4).
+    pub fn stance_coverage(&self) -> usize {
+        self.kept_stances().1.count_ones() as usize
+    }
+
+    fn kept_stances(&self) -> &(Vec<BaseStance>, u32) {
         self.stances.get_or_init(|| {
             let scale = self.reach() / UR5_REACH;
             let candidates: Vec<(u32, BaseStance)> = candidates(scale)
@@ -137,11 +148,7 @@ impl Arm {
             let start = self.base
                 * Isometry3::from_parts(Translation3::from(grip - z * APPROACH_OFFSET), *rotation);
             let direction = self.base.rotation * z;
-            // Either way round in the slot, as the planner tries a push
-            // (`pre_contact_poses`): a last joint of less than a full turn
-            // reaches only one of them.
-            let flipped = start * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), PI);
-            let carried = [start, flipped].iter().any(|pose| {
+            let carried = either_way_round(start).iter().any(|pose| {
                 self.ik_solutions(pose, &home).any(|q| {
                     valid(&q, &q, 0.0)
                         && push_line(self, valid, &q, &direction, PROBE_PUSH + APPROACH_OFFSET)
@@ -162,7 +169,8 @@ impl Arm {
 /// every direction from one stance (a UR) keeps the six best, and an arm
 /// with a narrow workspace (the Unitree Z1 pushes level from one height
 /// and up or down from others) also keeps a stance for each direction.
-fn keep_stances(mut scored: Vec<(u32, BaseStance)>) -> Vec<BaseStance> {
+/// Returns the stances kept and the test pushes they carry out.
+fn keep_stances(mut scored: Vec<(u32, BaseStance)>) -> (Vec<BaseStance>, u32) {
     // Stable: equal scores keep the candidates' order.
     scored.sort_by_key(|s| std::cmp::Reverse(s.0.count_ones()));
     let mut rest = scored.split_off(STANCES.min(scored.len()));
@@ -181,5 +189,5 @@ fn keep_stances(mut scored: Vec<(u32, BaseStance)>) -> Vec<BaseStance> {
         covered |= s.0;
         scored.push(s);
     }
-    scored.into_iter().map(|(_, s)| s).collect()
+    (scored.into_iter().map(|(_, s)| s).collect(), covered)
 }

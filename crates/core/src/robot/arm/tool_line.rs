@@ -4,7 +4,7 @@
 //! the same walk serves the planner (against the tree and obstacles) and
 //! [`crate::robot::arm::BaseStance`] scoring (against nothing).
 
-use nalgebra::{Isometry3, Translation3, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 use crate::robot::Arm;
 use crate::robot::model::joint_vector::JointVector;
@@ -16,6 +16,15 @@ pub const PUSH_STEP: f64 = 0.005;
 /// Largest joint change between two push steps (rad); more means the arm
 /// would have to jump to another IK branch.
 pub const PUSH_MAX_JOINT_STEP: f64 = 0.15;
+
+/// A tool pose and the same pose turned half a turn about the push axis
+/// (its z): the ⊔ slot holds a branch either way round, and a last joint
+/// of less than a full turn reaches only one of them, so every push (the
+/// planner's pre-contact poses, a stance's test pushes) is tried both ways.
+pub fn either_way_round(pose: Isometry3<f64>) -> [Isometry3<f64>; 2] {
+    let flipped = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
+    [pose, flipped]
+}
 
 /// The tool's straight line from `goal` along `direction` at constant
 /// orientation: IK at `distance(k)` for k = 1..=steps, each solution

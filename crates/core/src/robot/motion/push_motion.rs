@@ -40,7 +40,7 @@ use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vect
 use serde::Serialize;
 
 use crate::robot::arm::tool_line::{
-    APPROACH_OFFSET, PUSH_MAX_JOINT_STEP, PUSH_STEP, push_line, tool_line,
+    APPROACH_OFFSET, PUSH_MAX_JOINT_STEP, PUSH_STEP, either_way_round, push_line, tool_line,
 };
 use crate::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use crate::robot::motion::execution::{Execution, ExecutionOptions, PUSH_SPEED, execution};
@@ -169,9 +169,10 @@ pub fn pre_contact_poses(tree: &Tree, candidate: &Push) -> Option<[Isometry3<f64
     let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
         Matrix3::from_columns(&[x, y, z]),
     ));
-    let pose = Isometry3::from_parts(Translation3::from(origin.coords), rotation);
-    let flipped = pose * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
-    Some([pose, flipped])
+    Some(either_way_round(Isometry3::from_parts(
+        Translation3::from(origin.coords),
+        rotation,
+    )))
 }
 
 /// What the gripper may touch at the pre-contact pose: the contacted branch
