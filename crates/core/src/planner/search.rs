@@ -23,6 +23,10 @@ use crate::tree::Tree;
 pub const MIN_PUSH: f64 = 0.05;
 pub const MAX_PUSH: f64 = 0.15;
 
+/// How much wider than the first round's spread a seed whose pushes the
+/// arm can make none of is looked around, once.
+const WIDER_SIGMA_FACTOR: f64 = 3.0;
+
 /// Pushes per node and round when the budget is small: the policy's push
 /// (or the mean) and two around it.
 const MIN_SAMPLES: usize = 3;
@@ -219,16 +223,46 @@ pub fn search_pushes(
             }
         }
         let budget = options.max_evaluations.saturating_sub(evaluations);
-        let candidates: Vec<(usize, Push)> = {
+        let keep_feasible = |pushes: Vec<(usize, Push)>| -> Vec<(usize, Push)> {
             use rayon::prelude::*;
-            round_pushes
+            pushes
                 .into_par_iter()
                 .filter(|(_, p)| feasible(p))
-                .collect::<Vec<_>>()
-                .into_iter()
-                .take(budget)
                 .collect()
         };
+        let mut candidates = keep_feasible(round_pushes);
+        if round == 0 {
+            // A seed none of whose pushes the arm can make (the arm cannot
+            // push its node that way from where it may stand) gets one
+            // wider look around before it is given up: a push that does
+            // part of the work (its node's move across, not toward the
+            // arm) may still be the best there is.
+            let mut wider = Vec::new();
+            for (k, (seed, (mean, _))) in seeds.iter().zip(&state).enumerate() {
+                if !active[k] || candidates.iter().any(|c| c.0 == k) {
+                    continue;
+                }
+                for _ in 0..samples {
+                    let noise = Vector3::new(
+                        standard_normal(&mut rng),
+                        standard_normal(&mut rng),
+                        standard_normal(&mut rng),
+                    );
+                    let sigma = WIDER_SIGMA_FACTOR * options.initial_sigma;
+                    if let Some(vector) = clamp_length(mean + noise * sigma) {
+                        wider.push((
+                            k,
+                            Push {
+                                node: seed.node,
+                                vector,
+                            },
+                        ));
+                    }
+                }
+            }
+            candidates.extend(keep_feasible(wider));
+        }
+        candidates.truncate(budget);
         if candidates.is_empty() {
             break;
         }
@@ -341,5 +375,39 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A seed the arm can push its node nowhere near (every push within
+    /// 60° of it refused) is looked around wider once: the search still
+    /// scores feasible pushes of that node (around the seed alone, at the
+    /// first round's spread, it finds none).
+    #[test]
+    fn a_seed_the_arm_cannot_push_is_looked_around_wider() {
+        let tree = generate(15, 3, &ScaParams::default()).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (made, targets) = std::iter::repeat_with(|| {
+            let p = PushDistribution::default().sample(&tree, &mut rng);
+            (p, simulate(&tree, &p, &SimConfig::default()))
+        })
+        .find_map(|(p, out)| match out {
+            Ok(o) if p.vector.norm() > 0.1 => Some((p, o.final_positions)),
+            _ => None,
+        })
+        .unwrap();
+        let away = made.vector.normalize();
+        let feasible = |p: &Push| p.vector.normalize().dot(&away) < 0.5;
+        let objective = Objective::shape(targets.clone());
+        let (scored, _) = search_pushes(
+            &tree,
+            &objective,
+            None,
+            &[made],
+            &PhysicsPredictor,
+            &feasible,
+            &SearchOptions::default(),
+        )
+        .unwrap();
+        assert!(!scored.is_empty());
+        assert!(scored.iter().all(|s| feasible(&s.push)));
     }
 }
