@@ -117,6 +117,17 @@ fn clamp_length(v: Vector3<f64>) -> Option<Vector3<f64>> {
     (length.is_finite() && length > 1e-9).then(|| v * (length.clamp(MIN_PUSH, MAX_PUSH) / length))
 }
 
+/// A push drawn around `mean` with isotropic spread `sigma` (m), its
+/// length clamped into the trained range; `None` for a zero push.
+fn sample_around(mean: &Vector3<f64>, sigma: f64, rng: &mut ChaCha8Rng) -> Option<Vector3<f64>> {
+    let noise = Vector3::new(
+        standard_normal(rng),
+        standard_normal(rng),
+        standard_normal(rng),
+    );
+    clamp_length(mean + noise * sigma)
+}
+
 /// Whether the policy's own push T_j is scored as it is: while the forward
 /// model answers for its length (`model::domain` reaches a factor
 /// [`Margin::push_factor`] below the shortest trained push). Outside that,
@@ -203,12 +214,7 @@ pub fn search_pushes(
                         *mean
                     }
                 } else {
-                    let noise = Vector3::new(
-                        standard_normal(&mut rng),
-                        standard_normal(&mut rng),
-                        standard_normal(&mut rng),
-                    );
-                    match clamp_length(mean + noise * *sigma) {
+                    match sample_around(mean, *sigma, &mut rng) {
                         Some(v) => v,
                         None => continue,
                     }
@@ -238,18 +244,13 @@ pub fn search_pushes(
             // part of the work (its node's move across, not toward the
             // arm) may still be the best there is.
             let mut wider = Vec::new();
+            let sigma = WIDER_SIGMA_FACTOR * options.initial_sigma;
             for (k, (seed, (mean, _))) in seeds.iter().zip(&state).enumerate() {
                 if !active[k] || candidates.iter().any(|c| c.0 == k) {
                     continue;
                 }
                 for _ in 0..samples {
-                    let noise = Vector3::new(
-                        standard_normal(&mut rng),
-                        standard_normal(&mut rng),
-                        standard_normal(&mut rng),
-                    );
-                    let sigma = WIDER_SIGMA_FACTOR * options.initial_sigma;
-                    if let Some(vector) = clamp_length(mean + noise * sigma) {
+                    if let Some(vector) = sample_around(mean, sigma, &mut rng) {
                         wider.push((
                             k,
                             Push {
