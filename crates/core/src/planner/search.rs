@@ -26,6 +26,8 @@ pub const MAX_PUSH: f64 = 0.15;
 /// How much wider than the first round's spread a seed whose pushes the
 /// arm can make none of is looked around, once.
 const WIDER_SIGMA_FACTOR: f64 = 3.0;
+/// Mixed into the search's seed for the wider look's own random stream.
+const WIDER_STREAM: u64 = 0x5749_4445_5221;
 
 /// Pushes per node and round when the budget is small: the policy's push
 /// (or the mean) and two around it.
@@ -242,19 +244,22 @@ pub fn search_pushes(
             // push its node that way from where it may stand) gets one
             // wider look around before it is given up: a push that does
             // part of the work (its node's move across, not toward the
-            // arm) may still be the best there is.
+            // arm) may still be the best there is. The look draws from its
+            // own random stream, so every other seed's pushes are those the
+            // search would draw without it.
             let mut wider = Vec::new();
+            let mut wider_rng = ChaCha8Rng::seed_from_u64(options.seed ^ WIDER_STREAM);
             let sigma = WIDER_SIGMA_FACTOR * options.initial_sigma;
-            for (k, (seed, (mean, _))) in seeds.iter().zip(&state).enumerate() {
-                if !active[k] || candidates.iter().any(|c| c.0 == k) {
-                    continue;
-                }
-                for _ in 0..samples {
-                    if let Some(vector) = sample_around(mean, sigma, &mut rng) {
+            let unreached: Vec<usize> = (0..seeds.len())
+                .filter(|&k| active[k] && !candidates.iter().any(|c| c.0 == k))
+                .collect();
+            for _ in 0..samples {
+                for &k in &unreached {
+                    if let Some(vector) = sample_around(&state[k].0, sigma, &mut wider_rng) {
                         wider.push((
                             k,
                             Push {
-                                node: seed.node,
+                                node: seeds[k].node,
                                 vector,
                             },
                         ));
@@ -379,7 +384,7 @@ mod tests {
     }
 
     /// A seed the arm can push its node nowhere near (every push within
-    /// 60° of it refused) is looked around wider once: the search still
+    /// 40° of it refused) is looked around wider once: the search still
     /// scores feasible pushes of that node (around the seed alone, at the
     /// first round's spread, it finds none).
     #[test]
@@ -396,7 +401,7 @@ mod tests {
         })
         .unwrap();
         let away = made.vector.normalize();
-        let feasible = |p: &Push| p.vector.normalize().dot(&away) < 0.5;
+        let feasible = |p: &Push| p.vector.normalize().dot(&away) < 0.77;
         let objective = Objective::shape(targets.clone());
         let (scored, _) = search_pushes(
             &tree,
@@ -410,5 +415,59 @@ mod tests {
         .unwrap();
         assert!(!scored.is_empty());
         assert!(scored.iter().all(|s| feasible(&s.push)));
+    }
+
+    /// The wider look draws from its own stream: another node's pushes,
+    /// every round, are the ones the search draws when the look finds
+    /// nothing, so what the look adds is compared with the same draws.
+    #[test]
+    fn the_wider_look_leaves_other_nodes_pushes_as_drawn() {
+        let tree = generate(15, 3, &ScaParams::default()).unwrap();
+        let objective = Objective::shape(tree.positions().to_vec());
+        let (a, b) = (tree.len() - 1, tree.len() - 2);
+        let seeds = [
+            Push {
+                node: a,
+                vector: Vector3::new(0.08, 0.0, 0.0),
+            },
+            Push {
+                node: b,
+                vector: Vector3::new(0.0, 0.08, 0.0),
+            },
+        ];
+        // Enough budget for full rounds and no node dropped, so the two
+        // runs differ in node `b`'s pushes only.
+        let options = SearchOptions {
+            max_evaluations: 1000,
+            drop_margin: f64::INFINITY,
+            ..SearchOptions::default()
+        };
+        let pushes_of_a = |feasible: &(dyn Fn(&Push) -> bool + Sync)| {
+            let (scored, _) = search_pushes(
+                &tree,
+                &objective,
+                None,
+                &seeds,
+                &PhysicsPredictor,
+                feasible,
+                &options,
+            )
+            .unwrap();
+            let mut v: Vec<[f64; 3]> = scored
+                .iter()
+                .filter(|s| s.push.node == a)
+                .map(|s| s.push.vector.into())
+                .collect();
+            v.sort_by(|x, y| x.partial_cmp(y).unwrap());
+            (v, scored.iter().filter(|s| s.push.node == b).count())
+        };
+        // Node b: nothing near its seed (the look finds pushes), or nothing.
+        let near = |p: &Push| p.node != b || p.vector.normalize().y < 0.77;
+        let none = |p: &Push| p.node != b;
+        let (with_look, b_pushes) = pushes_of_a(&near);
+        let (without, b_none) = pushes_of_a(&none);
+        assert!(b_pushes > 0 && b_none == 0);
+        assert!(!with_look.is_empty());
+        assert_eq!(with_look, without);
     }
 }
