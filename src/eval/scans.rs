@@ -6,7 +6,8 @@
 //! with the simulator and load limits, the clearance margin grown by
 //! [`EXTRACTED_MARGIN`]), the push carried out on the true tree in the
 //! simulator where a gripper closing at the planned contact would hold it
-//! ([`held_at`]), against the same planning on the true tree.
+//! ([`held_at`]), against the same planning on the true tree
+//! ([`end_to_end`](mod@end_to_end)).
 //!
 //! The extraction's parameters were chosen on other trees (seeds 1-8 of
 //! the generator, never a test-split seed), so every tree here is held out.
@@ -14,24 +15,20 @@
 use std::time::Instant;
 
 use nalgebra::Point3;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 use serde::Serialize;
 
 use super::plan::percentile;
-use super::tasks::{best_push, clear_task, execute};
 use crate::dataset::{CollectConfig, Split};
-use crate::planner::objective::{Limits, SATISFIED};
-use crate::scan::skeleton::point_segment;
 use crate::scan::{
     ExtractParams, Extraction, ScanParams, ScanScore, Skeleton, extract, scan, score,
 };
 use crate::seed::derive_seed;
-use crate::sim::Push;
 use crate::tree::collection::TreeShape;
 use crate::tree::collection::tree_set;
-use crate::tree::{Branch, MAX_NODES, ScaParams, Tree, Wood};
+use crate::tree::{ScaParams, Tree};
+
+mod end_to_end;
+pub use end_to_end::{CONTACT_MATCH, EXTRACTED_MARGIN, EndToEnd, Missed, end_to_end, held_at};
 
 /// One scanning condition.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -252,162 +249,6 @@ pub fn summarise(condition: &Condition, rows: &[TreeRow]) -> ConditionRow {
         per_100k_p95: percentile(&per_100k, 0.95),
         nodes_ratio: mean(rows.iter().map(|r| r.nodes as f64 / r.n as f64)),
     }
-}
-
-/// End to end over one condition's extractions.
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct EndToEnd {
-    pub tasks: usize,
-    /// Tasks whose push planned on the true tree succeeds on it.
-    pub true_solved: usize,
-    /// Of those, how many the push planned on the extracted tree solves on
-    /// the true tree.
-    pub extracted_solved: usize,
-    /// Tasks the extracted tree's push solves (whether or not the true
-    /// tree's does).
-    pub extracted_solved_any: usize,
-    /// Extracted-tree pushes over the load limits on the true tree.
-    pub over_limit: usize,
-    /// Tasks without an extracted tree the simulator takes (refused cloud,
-    /// too many nodes).
-    pub no_tree: usize,
-}
-
-/// How far (m) the extracted push's contact may be from the true branch it
-/// is carried out on.
-pub const CONTACT_MATCH: f64 = 0.05;
-
-/// Planning on an extracted tree adds this (m) to a `clear` task's margin:
-/// the tree's geometry is known to a few millimetres, not exactly.
-pub const EXTRACTED_MARGIN: f64 = 0.01;
-
-/// `tasks_per_tree` `clear` tasks per tree: planned on the extracted tree
-/// and on the true one (arm ignored, simulator as the predictor, under
-/// `limits`), each push carried out on the true tree at the true node
-/// nearest to the planned contact.
-pub fn end_to_end(
-    trees: &[Tree],
-    extractions: &[Option<Extraction>],
-    tasks_per_tree: usize,
-    limits: &Limits,
-    seed: u64,
-) -> EndToEnd {
-    let results: Vec<EndToEnd> = trees
-        .par_iter()
-        .zip(extractions)
-        .enumerate()
-        .map(|(i, (tree, extraction))| {
-            let mut out = EndToEnd::default();
-            let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, &[i as u64, 77]));
-            let found = extraction
-                .as_ref()
-                .and_then(|e| e.skeleton.to_tree(&Wood::default()).ok());
-            for t in 0..tasks_per_tree {
-                let Some(objective) = clear_task(tree, &mut rng) else {
-                    continue;
-                };
-                out.tasks += 1;
-                let task_seed = derive_seed(seed, &[i as u64, t as u64]);
-                // (satisfied within the limits, over the limits) on `held`.
-                let solves = |held: &Tree, push: &Push| {
-                    execute(held, &objective, push).map(|(residual, _, loads)| {
-                        (
-                            residual <= SATISFIED && limits.allow(&loads),
-                            !limits.allow(&loads),
-                        )
-                    })
-                };
-                let true_ok = best_push(tree, &objective, Some(limits), task_seed)
-                    .and_then(|s| solves(tree, &s.push))
-                    .is_some_and(|(ok, _)| ok);
-                let Some(found) = &found else {
-                    out.no_tree += 1;
-                    out.true_solved += usize::from(true_ok);
-                    continue;
-                };
-                let cautious = match &objective {
-                    crate::planner::objective::Objective::Clear { regions, margin } => {
-                        crate::planner::objective::Objective::Clear {
-                            regions: regions.clone(),
-                            margin: margin + EXTRACTED_MARGIN,
-                        }
-                    }
-                    o => o.clone(),
-                };
-                let carried = best_push(found, &cautious, Some(limits), task_seed).and_then(|s| {
-                    let (held, node) = held_at(tree, &found.position(s.push.node))?;
-                    solves(
-                        &held,
-                        &Push {
-                            node,
-                            vector: s.push.vector,
-                        },
-                    )
-                });
-                let (ok, over) = carried.unwrap_or((false, false));
-                out.true_solved += usize::from(true_ok);
-                out.extracted_solved += usize::from(true_ok && ok);
-                out.extracted_solved_any += usize::from(ok);
-                out.over_limit += usize::from(over);
-            }
-            out
-        })
-        .collect();
-    results
-        .into_iter()
-        .fold(EndToEnd::default(), |a, b| EndToEnd {
-            tasks: a.tasks + b.tasks,
-            true_solved: a.true_solved + b.true_solved,
-            extracted_solved: a.extracted_solved + b.extracted_solved,
-            extracted_solved_any: a.extracted_solved_any + b.extracted_solved_any,
-            over_limit: a.over_limit + b.over_limit,
-            no_tree: a.no_tree + b.no_tree,
-        })
-}
-
-/// A gripper closing at `at` holds the true tree's branch nearest to it:
-/// the true tree with a node there (the branch split in two, the outer
-/// part joined rigidly, 1000 times stiffer, so the tree bends as before)
-/// and that node; the branch's own node when `at` is within 1 cm of it.
-/// `None` when no branch passes within [`CONTACT_MATCH`].
-pub fn held_at(tree: &Tree, at: &Point3<f64>) -> Option<(Tree, usize)> {
-    let (j, d, t) = (1..tree.len())
-        .filter_map(|j| {
-            let p = tree.parent(j)?;
-            let (d, t) = point_segment(at, &tree.position(p), &tree.position(j));
-            Some((j, d, t))
-        })
-        .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    if d > CONTACT_MATCH {
-        return None;
-    }
-    let p = tree.parent(j)?;
-    let (a, b) = (tree.position(p), tree.position(j));
-    let length = (b - a).norm();
-    if (1.0 - t) * length <= 0.01 || t * length <= 0.01 || tree.len() >= MAX_NODES {
-        return Some((tree.clone(), j));
-    }
-    let branch = *tree.branch(j)?;
-    let q = a + (b - a) * t;
-    let mut positions = tree.positions().to_vec();
-    let mut parents = tree.parents().to_vec();
-    let mut branches = tree.branches().to_vec();
-    let new = positions.len();
-    positions.push(q);
-    parents.push(Some(p));
-    branches.push(Some(Branch {
-        length: t * length,
-        ..branch
-    }));
-    parents[j] = Some(new);
-    branches[j] = Some(Branch {
-        length: (1.0 - t) * length,
-        stiffness: branch.stiffness * 1000.0,
-        damping: branch.damping * 1000.0,
-        ..branch
-    });
-    let split = Tree::new(positions, parents, branches).ok()?;
-    Some((split, new))
 }
 
 /// The results as a markdown table.

@@ -1,0 +1,253 @@
+//! End to end: `clear` tasks planned on the tree extracted from a scan
+//! (the arm-free search with the simulator and load limits, the clearance
+//! margin grown by [`EXTRACTED_MARGIN`]) and carried out on the true tree
+//! where a gripper closing at the planned contact would hold it
+//! ([`held_at`]), against the same planning on the true tree; each task
+//! the extracted tree misses is counted with why ([`Missed`]).
+
+use nalgebra::Point3;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::eval::tasks::{best_push, clear_task, execute};
+use crate::planner::objective::{Limits, SATISFIED};
+use crate::scan::Extraction;
+use crate::scan::skeleton::point_segment;
+use crate::seed::derive_seed;
+use crate::sim::Push;
+use crate::tree::{Branch, MAX_NODES, Tree, Wood};
+
+/// End to end over one condition's extractions.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct EndToEnd {
+    pub tasks: usize,
+    /// Tasks whose push planned on the true tree succeeds on it.
+    pub true_solved: usize,
+    /// Of those, how many the push planned on the extracted tree solves on
+    /// the true tree.
+    pub extracted_solved: usize,
+    /// Tasks the extracted tree's push solves (whether or not the true
+    /// tree's does).
+    pub extracted_solved_any: usize,
+    /// Extracted-tree pushes over the load limits on the true tree.
+    pub over_limit: usize,
+    /// Tasks without an extracted tree the simulator takes (refused cloud,
+    /// too many nodes).
+    pub no_tree: usize,
+    /// Why the tasks the true tree's push solves and the extracted tree's
+    /// does not are missed.
+    pub missed: Missed,
+}
+
+/// Why a task solved on the true tree is missed from the extracted one.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct Missed {
+    /// The search found no push on the extracted tree.
+    pub no_push: usize,
+    /// No true branch within [`CONTACT_MATCH`] of the planned contact.
+    pub no_branch: usize,
+    /// Carried out on the true tree, the push leaves the region unclear.
+    pub not_cleared: usize,
+    /// Carried out on the true tree, the push loads it over a limit.
+    pub over_limit: usize,
+}
+
+impl Missed {
+    fn add(self, o: Missed) -> Missed {
+        Missed {
+            no_push: self.no_push + o.no_push,
+            no_branch: self.no_branch + o.no_branch,
+            not_cleared: self.not_cleared + o.not_cleared,
+            over_limit: self.over_limit + o.over_limit,
+        }
+    }
+}
+
+/// How far (m) the extracted push's contact may be from the true branch it
+/// is carried out on.
+pub const CONTACT_MATCH: f64 = 0.05;
+
+/// Planning on an extracted tree adds this (m) to a `clear` task's margin:
+/// the tree's geometry is known to a few millimetres, not exactly.
+pub const EXTRACTED_MARGIN: f64 = 0.01;
+
+/// `tasks_per_tree` `clear` tasks per tree: planned on the extracted tree
+/// and on the true one (arm ignored, simulator as the predictor, under
+/// `limits`), each push carried out on the true tree at the true node
+/// nearest to the planned contact.
+pub fn end_to_end(
+    trees: &[Tree],
+    extractions: &[Option<Extraction>],
+    tasks_per_tree: usize,
+    limits: &Limits,
+    seed: u64,
+) -> EndToEnd {
+    let results: Vec<EndToEnd> = trees
+        .par_iter()
+        .zip(extractions)
+        .enumerate()
+        .map(|(i, (tree, extraction))| {
+            let mut out = EndToEnd::default();
+            let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(seed, &[i as u64, 77]));
+            let found = extraction
+                .as_ref()
+                .and_then(|e| e.skeleton.to_tree(&Wood::default()).ok());
+            for t in 0..tasks_per_tree {
+                let Some(objective) = clear_task(tree, &mut rng) else {
+                    continue;
+                };
+                out.tasks += 1;
+                let task_seed = derive_seed(seed, &[i as u64, t as u64]);
+                // (satisfied within the limits, over the limits) on `held`.
+                let solves = |held: &Tree, push: &Push| {
+                    execute(held, &objective, push).map(|(residual, _, loads)| {
+                        (
+                            residual <= SATISFIED && limits.allow(&loads),
+                            !limits.allow(&loads),
+                        )
+                    })
+                };
+                let true_ok = best_push(tree, &objective, Some(limits), task_seed)
+                    .and_then(|s| solves(tree, &s.push))
+                    .is_some_and(|(ok, _)| ok);
+                let Some(found) = &found else {
+                    out.no_tree += 1;
+                    out.true_solved += usize::from(true_ok);
+                    continue;
+                };
+                let cautious = match &objective {
+                    crate::planner::objective::Objective::Clear { regions, margin } => {
+                        crate::planner::objective::Objective::Clear {
+                            regions: regions.clone(),
+                            margin: margin + EXTRACTED_MARGIN,
+                        }
+                    }
+                    o => o.clone(),
+                };
+                let planned = best_push(found, &cautious, Some(limits), task_seed);
+                let held = planned
+                    .as_ref()
+                    .and_then(|s| held_at(tree, &found.position(s.push.node)));
+                let carried = planned.zip(held).and_then(|(s, (held, node))| {
+                    solves(
+                        &held,
+                        &Push {
+                            node,
+                            vector: s.push.vector,
+                        },
+                    )
+                });
+                let (ok, over) = carried.unwrap_or((false, false));
+                if true_ok && !ok {
+                    let m = &mut out.missed;
+                    match (planned.is_some(), carried.is_some(), over) {
+                        (false, _, _) => m.no_push += 1,
+                        (true, false, _) => m.no_branch += 1,
+                        (true, true, true) => m.over_limit += 1,
+                        (true, true, false) => m.not_cleared += 1,
+                    }
+                }
+                out.true_solved += usize::from(true_ok);
+                out.extracted_solved += usize::from(true_ok && ok);
+                out.extracted_solved_any += usize::from(ok);
+                out.over_limit += usize::from(over);
+            }
+            out
+        })
+        .collect();
+    results
+        .into_iter()
+        .fold(EndToEnd::default(), |a, b| EndToEnd {
+            tasks: a.tasks + b.tasks,
+            true_solved: a.true_solved + b.true_solved,
+            extracted_solved: a.extracted_solved + b.extracted_solved,
+            extracted_solved_any: a.extracted_solved_any + b.extracted_solved_any,
+            over_limit: a.over_limit + b.over_limit,
+            no_tree: a.no_tree + b.no_tree,
+            missed: a.missed.add(b.missed),
+        })
+}
+
+/// A gripper closing at `at` holds the true tree's branch nearest to it:
+/// the true tree with a node there (the branch split in two, the outer
+/// part joined rigidly, 1000 times stiffer, so the tree bends as before)
+/// and that node; the branch's own node when `at` is within 1 cm of it.
+/// `None` when no branch passes within [`CONTACT_MATCH`].
+pub fn held_at(tree: &Tree, at: &Point3<f64>) -> Option<(Tree, usize)> {
+    let (j, d, t) = (1..tree.len())
+        .filter_map(|j| {
+            let p = tree.parent(j)?;
+            let (d, t) = point_segment(at, &tree.position(p), &tree.position(j));
+            Some((j, d, t))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    if d > CONTACT_MATCH {
+        return None;
+    }
+    let p = tree.parent(j)?;
+    let (a, b) = (tree.position(p), tree.position(j));
+    let length = (b - a).norm();
+    if (1.0 - t) * length <= 0.01 || t * length <= 0.01 || tree.len() >= MAX_NODES {
+        return Some((tree.clone(), j));
+    }
+    let branch = *tree.branch(j)?;
+    let q = a + (b - a) * t;
+    let mut positions = tree.positions().to_vec();
+    let mut parents = tree.parents().to_vec();
+    let mut branches = tree.branches().to_vec();
+    let new = positions.len();
+    positions.push(q);
+    parents.push(Some(p));
+    branches.push(Some(Branch {
+        length: t * length,
+        ..branch
+    }));
+    parents[j] = Some(new);
+    branches[j] = Some(Branch {
+        length: (1.0 - t) * length,
+        stiffness: branch.stiffness * 1000.0,
+        damping: branch.damping * 1000.0,
+        ..branch
+    });
+    let split = Tree::new(positions, parents, branches).ok()?;
+    Some((split, new))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::scans::{Condition, evaluate_condition, test_trees};
+    use crate::planner::objective::{DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS};
+
+    /// Every task the true tree's push solves and the extracted tree's
+    /// does not is counted once, with its reason, on clouds good enough
+    /// that every tree is extracted.
+    #[test]
+    fn every_task_the_extracted_tree_misses_is_counted_with_why() {
+        let trees = test_trees(&[12, 16], 2).unwrap();
+        let condition = Condition {
+            views: 3,
+            noise: 0.002,
+            leaves: 0,
+            colour: false,
+        };
+        let (_, extractions) = evaluate_condition(&trees, &condition, 7);
+        let limits = Limits {
+            max_stress: DEFAULT_MAX_STRESS,
+            max_contact_force: DEFAULT_MAX_CONTACT_FORCE,
+        };
+        let e = end_to_end(&trees, &extractions, 3, &limits, 7);
+        assert_eq!(e.no_tree, 0);
+        assert!(e.tasks >= 10 && e.true_solved > 0 && e.extracted_solved > 0);
+        let m = e.missed;
+        assert_eq!(
+            e.true_solved - e.extracted_solved,
+            m.no_push + m.no_branch + m.not_cleared + m.over_limit
+        );
+        // Over the limits on the true tree: only the missed ones counted
+        // there, or tasks the true tree's own push does not solve either.
+        assert!(m.over_limit <= e.over_limit);
+    }
+}
