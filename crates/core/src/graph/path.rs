@@ -46,7 +46,8 @@ pub enum Encoding {
     /// The root-to-contact path and its side branches (this module); the
     /// output is each graph node's Δp beyond the linearised push, placed on
     /// the whole tree as path joint rotations. Any tree size; the graph
-    /// itself has at most [`PATH_GRAPH_MAX_NODES`] nodes.
+    /// itself has at most [`PATH_GRAPH_MAX_NODES`] nodes, side branches only
+    /// up to [`PATH_GRAPH_TRAINED_NODES`].
     Path,
 }
 
@@ -89,13 +90,23 @@ pub struct PathGraph {
 
 /// Most nodes of one path graph: the fully connected models' limit
 /// ([`crate::tree::FULL_GRAPH_MAX_NODES`]), so one push costs what the
-/// paper's GNN costs at most. Orchard trees of 500 nodes have path graphs
-/// of 31 nodes at the median and 61 at most (20 trees, every node pushed):
-/// a path deeper than this is refused ([`EncodeError::PathTooDeep`]); a
-/// path with more side branches than fit keeps those nearest the contact
-/// (the joints that turn most) and places the others' branches by the
-/// least turn, as for a side node in line with its path branch.
+/// paper's GNN costs at most. A path deeper than this is refused
+/// ([`EncodeError::PathTooDeep`]).
 pub const PATH_GRAPH_MAX_NODES: usize = crate::tree::FULL_GRAPH_MAX_NODES;
+
+/// Side branches join a path graph while it has fewer nodes than this (the
+/// path itself is always whole): those nearest the contact first (the
+/// joints that turn most); the others' branches are placed by the least
+/// turn, as for a side node in line with its path branch. The models learn
+/// from trees of at most 60 nodes, whose path graphs have 13 nodes at the
+/// median and 30 at the 99th percentile (`--shape all`, 7,320 pushes), while
+/// a 500-node orchard tree's have 32 at the median and up to 58: graphs
+/// kept within what training saw cost a quarter of a full one and err
+/// less. Held-out orchard trees (`eval sizes`, 96 pushes per size), e_N
+/// at N = 500 against a limit of 64: 7.29 against 7.59 cm (seed 1001) and
+/// 8.55 against 8.70 (seed 2002); at N = 200 6.11 both (seed 2002); 64
+/// pushes at N = 500 in 77 against 111 ms (seed 1001, 2 cores).
+pub const PATH_GRAPH_TRAINED_NODES: usize = 32;
 
 /// Most joints from the root to a contact that one path graph holds (its
 /// nodes less the contact's own).
@@ -163,7 +174,7 @@ pub fn encode_forward_path(
     for k in (1..path_len).rev() {
         let next = nodes.get(k + 1).copied();
         for &c in tree.children(nodes[k]) {
-            if Some(c) != next && nodes.len() < PATH_GRAPH_MAX_NODES {
+            if Some(c) != next && nodes.len() < PATH_GRAPH_TRAINED_NODES.max(path_len) {
                 nodes.push(side_representative(tree, nodes[k - 1], nodes[k], c));
                 hangs_from.push(k);
             }
@@ -357,9 +368,10 @@ mod tests {
     use crate::sim::{SimConfig, simulate};
     use crate::tree::{OrchardParams, generate_orchard};
 
-    /// A comb: a 40-joint spine with two twigs at every spine node. Its
+    /// A comb: a 20-joint spine with two twigs at every spine node. Its
     /// deepest push's graph holds the root, the path and as many side nodes
-    /// as fit, those nearest the contact first; a spine of 70 joints is
+    /// as the trained size allows, those nearest the contact first; a
+    /// 40-joint spine's, its path alone; a spine of 70 joints is
     /// refused by name.
     #[test]
     fn path_graphs_hold_at_most_their_limit() {
@@ -390,17 +402,22 @@ mod tests {
                 .collect();
             Tree::new(positions, parents, branches).unwrap()
         };
-        let tree = comb(40);
-        let tip = 3 * 40 - 2;
-        assert_eq!(tree.depth(tip), 40);
+        let tree = comb(20);
+        let tip = 3 * 20 - 2;
+        assert_eq!(tree.depth(tip), 20);
         let graph = encode_forward_path(&tree, tip, &(Vector3::x() * 0.05)).unwrap();
-        assert_eq!(graph.input.n, PATH_GRAPH_MAX_NODES);
-        assert_eq!(graph.path_len, 41);
-        // 23 side nodes: both twigs of the 11 spine nodes nearest the
-        // contact, and one of the twelfth.
-        assert_eq!(graph.hangs_from.iter().min(), Some(&29));
+        assert_eq!(graph.input.n, PATH_GRAPH_TRAINED_NODES);
+        assert_eq!(graph.path_len, 21);
+        // 11 side nodes: both twigs of the 5 spine nodes nearest the
+        // contact, and one of the sixth.
+        assert_eq!(graph.hangs_from.iter().min(), Some(&15));
         let placed = graph.positions(&tree, &vec![0.0; 3 * graph.input.n]);
         assert_eq!(placed.len(), tree.len());
+        // A path longer than the side branches' limit stays whole, alone.
+        let long = comb(40);
+        let graph = encode_forward_path(&long, 3 * 40 - 2, &(Vector3::x() * 0.05)).unwrap();
+        assert_eq!((graph.input.n, graph.path_len), (41, 41));
+        assert_eq!(graph.positions(&long, &vec![0.0; 3 * 41]).len(), long.len());
         let deep = comb(70);
         assert_eq!(
             encode_forward_path(&deep, 3 * 70 - 2, &Vector3::x()),
