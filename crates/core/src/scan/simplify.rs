@@ -3,7 +3,9 @@
 //! a branch a joint stays where the branch bends (Douglas-Peucker, with a
 //! tolerance of half the radius, at least 3 mm) and where the joints would
 //! otherwise be more than `spacing` apart, and never closer than
-//! [`MIN_JOINT_SPACING`] to the joint before.
+//! [`MIN_JOINT_SPACING`] to the joint before. A joint at a bend goes where
+//! the straight stretches on either side meet ([`corner`]): the fine nodes
+//! round a bend off inside it.
 
 use crate::scan::skeleton::{Skeleton, point_segment};
 
@@ -28,12 +30,21 @@ pub fn simplify(fine: &Skeleton, confidence: &[f64], spacing: f64) -> (Skeleton,
         let keep = joints(fine, nodes, spacing);
         let mut prev = coarse[nodes[0]];
         let mut span_start = 1;
-        for &x in &keep {
+        for (k, &x) in keep.iter().enumerate() {
             let span = &nodes[span_start..=x];
             let mut radii: Vec<f64> = span.iter().map(|&k| fine.radius[k]).collect();
             radii.sort_by(f64::total_cmp);
             let id = out.positions.len();
-            out.positions.push(fine.positions[nodes[x]]);
+            // A joint between two kept ones (not a fork or tip) stands
+            // where the branches on either side meet.
+            let at = match (
+                k.checked_sub(1).map_or(Some(0), |b| keep.get(b).copied()),
+                keep.get(k + 1),
+            ) {
+                (Some(before), Some(&after)) => corner(fine, nodes, before, x, after),
+                _ => None,
+            };
+            out.positions.push(at.unwrap_or(fine.positions[nodes[x]]));
             out.parents.push(Some(prev));
             out.radius.push(radii[radii.len() / 2]);
             out_confidence
@@ -100,6 +111,67 @@ fn joints(fine: &Skeleton, nodes: &[usize], spacing: f64) -> Vec<usize> {
     out
 }
 
+/// Smallest turn (rad) between the straight stretches on either side of a
+/// joint for it to be moved to where they meet.
+const CORNER_MIN_TURN: f64 = 0.2;
+/// Farthest (m) a joint is moved to where its stretches meet.
+const CORNER_MAX_SHIFT: f64 = 0.03;
+
+/// Where the stretches of fine nodes before and after joint `x` (chain
+/// indices `before < x < after`, the joints on either side) meet: the
+/// midpoint of the shortest segment between the lines fitted to each,
+/// leaving out the nodes within two radii of the joint. A bend's cross
+/// sections are cut obliquely, so the fine nodes round the corner off
+/// inside it (on the generator's trees by 1-2 cm on 5 mm twigs); `None`
+/// where a stretch is too short to fit, the turn is slight or the meeting
+/// point far.
+fn corner(
+    fine: &Skeleton,
+    nodes: &[usize],
+    before: usize,
+    x: usize,
+    after: usize,
+) -> Option<nalgebra::Point3<f64>> {
+    let at = fine.positions[nodes[x]];
+    let guard = (2.0 * fine.radius[nodes[x]]).max(0.01);
+    let fit = |range: std::ops::RangeInclusive<usize>| {
+        let pts: Vec<nalgebra::Point3<f64>> = range
+            .map(|i| fine.positions[nodes[i]])
+            .filter(|p| (p - at).norm() > guard)
+            .collect();
+        if pts.len() < 3 {
+            return None;
+        }
+        let centre =
+            pts.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>() / pts.len() as f64;
+        let mut scatter = nalgebra::Matrix3::zeros();
+        for p in &pts {
+            let d = p.coords - centre;
+            scatter += d * d.transpose();
+        }
+        let eig = scatter.symmetric_eigen();
+        let (i, _) = eig.eigenvalues.argmax();
+        Some((
+            nalgebra::Point3::from(centre),
+            eig.eigenvectors.column(i).into_owned(),
+        ))
+    };
+    let (c1, d1) = fit(before..=x)?;
+    let (c2, d2) = fit(x..=after)?;
+    let cos = d1.dot(&d2).abs();
+    if cos > CORNER_MIN_TURN.cos() {
+        return None;
+    }
+    // Closest points of the two lines c1 + s d1 and c2 + t d2.
+    let w = c1 - c2;
+    let (b, d, e) = (d1.dot(&d2), d1.dot(&w), d2.dot(&w));
+    let denom = 1.0 - b * b;
+    let s = (b * e - d) / denom;
+    let t = (e - b * d) / denom;
+    let meet = nalgebra::center(&(c1 + d1 * s), &(c2 + d2 * t));
+    ((meet - at).norm() <= CORNER_MAX_SHIFT).then_some(meet)
+}
+
 fn douglas_peucker(fine: &Skeleton, nodes: &[usize], a: usize, b: usize, keep: &mut [bool]) {
     if b <= a + 1 {
         return;
@@ -149,5 +221,63 @@ mod tests {
             let d = (out.positions[j] - out.positions[p.unwrap()]).norm();
             assert!((MIN_JOINT_SPACING - 1e-9..=0.12 + 1e-9).contains(&d), "{d}");
         }
+    }
+
+    /// Cross sections cut a bend obliquely, so the fine nodes round the
+    /// corner off inside it: the joint goes where the straight stretches
+    /// on either side meet, not on the rounded nodes.
+    #[test]
+    fn a_rounded_bend_gets_its_joint_at_the_corner() {
+        // Up 0.3 m, then along +x 0.2 m, on a 12 mm branch; the node at
+        // the corner lies 7 mm inside it.
+        let corner = Point3::new(0.0, 0.0, 0.3);
+        let mut positions: Vec<Point3<f64>> = (0..=29)
+            .map(|i| Point3::new(0.0, 0.0, i as f64 * 0.01))
+            .collect();
+        positions.push(Point3::new(0.005, 0.0, 0.295));
+        positions.extend((1..=20).map(|i| Point3::new(i as f64 * 0.01, 0.0, 0.3)));
+        let n = positions.len();
+        let fine = Skeleton {
+            positions,
+            parents: (0..n).map(|i| i.checked_sub(1)).collect(),
+            radius: vec![0.012; n],
+        };
+        let nearest = |out: &Skeleton| {
+            out.positions
+                .iter()
+                .map(|p| (p - corner).norm())
+                .fold(f64::INFINITY, f64::min)
+        };
+        let rounded = fine
+            .positions
+            .iter()
+            .map(|p| (p - corner).norm())
+            .fold(f64::INFINITY, f64::min);
+        assert!(rounded > 0.007, "{rounded}");
+        let (out, _) = simplify(&fine, &vec![1.0; n], 0.4);
+        assert!(
+            nearest(&out) < 1e-9,
+            "{} {:?}",
+            nearest(&out),
+            out.positions
+        );
+        // A slight turn is left where the nodes put it.
+        let (gentle, _) = simplify(
+            &Skeleton {
+                positions: fine
+                    .positions
+                    .iter()
+                    .map(|p| Point3::new(p.x * 0.1, 0.0, p.z))
+                    .collect(),
+                ..fine.clone()
+            },
+            &vec![1.0; n],
+            0.4,
+        );
+        assert!(gentle.positions.iter().all(|p| {
+            fine.positions
+                .iter()
+                .any(|q| (Point3::new(q.x * 0.1, 0.0, q.z) - p).norm() < 1e-9)
+        }));
     }
 }
