@@ -7,6 +7,7 @@
 //! the straight stretches on either side meet ([`corner`]): the fine nodes
 //! round a bend off inside it.
 
+use crate::scan::cloud::principal_spread;
 use crate::scan::skeleton::{Skeleton, point_segment};
 
 /// Joints along a branch are at least this far apart (m): the generator's
@@ -144,17 +145,8 @@ fn corner(
         }
         let centre =
             pts.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>() / pts.len() as f64;
-        let mut scatter = nalgebra::Matrix3::zeros();
-        for p in &pts {
-            let d = p.coords - centre;
-            scatter += d * d.transpose();
-        }
-        let eig = scatter.symmetric_eigen();
-        let (i, _) = eig.eigenvalues.argmax();
-        Some((
-            nalgebra::Point3::from(centre),
-            eig.eigenvectors.column(i).into_owned(),
-        ))
+        let (_, axes) = principal_spread(&pts);
+        Some((nalgebra::Point3::from(centre), axes.column(0).into_owned()))
     };
     let (c1, d1) = fit(before..=x)?;
     let (c2, d2) = fit(x..=after)?;
@@ -248,11 +240,7 @@ mod tests {
                 .map(|p| (p - corner).norm())
                 .fold(f64::INFINITY, f64::min)
         };
-        let rounded = fine
-            .positions
-            .iter()
-            .map(|p| (p - corner).norm())
-            .fold(f64::INFINITY, f64::min);
+        let rounded = nearest(&fine);
         assert!(rounded > 0.007, "{rounded}");
         let (out, _) = simplify(&fine, &vec![1.0; n], 0.4);
         assert!(
