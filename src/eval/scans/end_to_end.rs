@@ -130,6 +130,7 @@ pub fn end_to_end(
                 let held = planned
                     .as_ref()
                     .and_then(|s| held_at(tree, &found.position(s.push.node)));
+                let branch_there = held.is_some();
                 let carried = planned.zip(held).and_then(|(s, (held, node))| {
                     solves(
                         &held,
@@ -142,7 +143,9 @@ pub fn end_to_end(
                 let (ok, over) = carried.unwrap_or((false, false));
                 if true_ok && !ok {
                     let m = &mut out.missed;
-                    match (planned.is_some(), carried.is_some(), over) {
+                    // A push the simulator rejects on the true tree
+                    // clears nothing.
+                    match (planned.is_some(), branch_there, over) {
                         (false, _, _) => m.no_push += 1,
                         (true, false, _) => m.no_branch += 1,
                         (true, true, true) => m.over_limit += 1,
