@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use crate::planner::answer::Attempt;
 use crate::planner::base::{self, BasePose};
-use crate::planner::objective::SATISFIED;
+use crate::planner::objective::{Limits, SATISFIED};
 use crate::planner::placed::{Placed, Planner};
 use crate::planner::query::{Query, Stance};
 use crate::planner::search::Scored;
@@ -43,6 +43,11 @@ pub(super) struct Run<'a> {
     /// Pushes passed over as [`Outcome::Missed`], with their rank and what
     /// their simulation gave (residual, loads, clearance).
     pub missed: Vec<(usize, Scored)>,
+    /// Pushes predicted to help that the arm could not carry out (no
+    /// stance reached, the tool collided, the straight push or the approach
+    /// blocked), with their rank and prediction: [`crate::planner::shorter`]
+    /// tries them shorter.
+    pub blocked: Vec<(usize, Scored)>,
 }
 
 impl Run<'_> {
@@ -240,6 +245,11 @@ impl Run<'_> {
         if let Some(a) = self.attempts.last_mut() {
             a.simulated_loads = simulated.map(|s| s.loads);
         }
+        if result.is_none() && outcome != Outcome::StartInCollision {
+            if let Some(p) = predicted {
+                self.blocked.push((rank, *p));
+            }
+        }
         result
     }
 }
@@ -304,4 +314,20 @@ pub(super) fn worst_to_best(a: Outcome, b: Outcome) -> Outcome {
         _ => 6,
     };
     if depth(b) > depth(a) { b } else { a }
+}
+
+/// How predicted pushes are judged: the limits their loads are screened
+/// with, and the residual of doing nothing, which a push must beat.
+pub(super) struct Judged<'a> {
+    pub screen: Option<&'a Limits>,
+    pub no_action_error: f64,
+}
+
+/// A push carried out, with what was predicted and simulated of it.
+pub(super) struct Found {
+    pub plan: PushPlan,
+    pub placed: Placed,
+    /// What was predicted of it (`None` for `paper`).
+    pub predicted: Option<Scored>,
+    pub simulated: Option<SimulatedHold>,
 }

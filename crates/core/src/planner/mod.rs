@@ -32,6 +32,7 @@ mod query;
 pub mod refine;
 pub mod search;
 pub mod seeds;
+mod shorter;
 mod stages;
 
 pub use crate::geometry::shape::Shape;

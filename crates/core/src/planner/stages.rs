@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use crate::planner::answer::{Clearance, Plan, PlanError};
 use crate::planner::base::{self, BasePose};
-use crate::planner::execute::{Run, SimulatedHold};
+use crate::planner::execute::{Found, Judged, Run};
 use crate::planner::objective::{Limits, Objective};
 use crate::planner::placed::{Placed, Planner};
 use crate::planner::predict::{ContactPolicy, PhysicsPredictor, Predictor};
@@ -15,8 +15,9 @@ use crate::planner::query::{Query, Stance, Strategy};
 use crate::planner::refine;
 use crate::planner::search::{self, SearchOptions, score, search_pushes};
 use crate::planner::seeds::{self, interleave, ranked};
+use crate::planner::shorter;
 use crate::robot::collision::{Allowed, TreeObstacles};
-use crate::robot::motion::push_motion::{Outcome, PushPlan};
+use crate::robot::motion::push_motion::Outcome;
 use crate::robot::motion::rrt::{Config, MotionValidator};
 use crate::robot::motion::scene::PlanningScene;
 use crate::sim::Push;
@@ -103,6 +104,7 @@ impl Planner {
             enforce_limits,
             verify: query.strategy == Strategy::Model && objective.has_goal_region(),
             missed: Vec::new(),
+            blocked: Vec::new(),
         };
         let no_action_error = objective.residual(tree, tree.positions());
         let physics = PhysicsPredictor;
@@ -129,6 +131,11 @@ impl Planner {
         }
         if found.is_none() {
             found = walk_ranked(&mut run, proposals, predictor, &judged, &mut evaluations)?;
+        }
+        if found.is_none()
+            && let Some(predictor) = predictor
+        {
+            found = shorter::shorter(&mut run, predictor, &judged, &mut evaluations)?;
         }
         if found.is_none() {
             found = closest_miss(&mut run, no_action_error);
@@ -236,13 +243,6 @@ struct Answered {
     evaluations: usize,
     attempts: Vec<crate::planner::answer::Attempt>,
     clock: Instant,
-}
-
-/// How predicted pushes are judged: the limits their loads are screened
-/// with, and the residual of doing nothing, which a push must beat.
-struct Judged<'a> {
-    screen: Option<&'a Limits>,
-    no_action_error: f64,
 }
 
 /// Stage 1, propose: the pushes to start from, with their rank: the
@@ -518,13 +518,4 @@ fn closest_miss(run: &mut Run<'_>, no_action_error: f64) -> Option<Found> {
         }
     }
     None
-}
-
-/// A push carried out, with what was predicted and simulated of it.
-struct Found {
-    plan: PushPlan,
-    placed: Placed,
-    /// What was predicted of it (`None` for `paper`).
-    predicted: Option<search::Scored>,
-    simulated: Option<SimulatedHold>,
 }
