@@ -67,6 +67,13 @@ impl BasePose {
             pitch: tidy(pitch),
         }
     }
+
+    /// Whether `other` stands within 2 cm and 0.05 rad of this pose (a
+    /// proposal clamped onto another).
+    pub fn same_as(&self, other: &BasePose) -> bool {
+        (Vector3::from(self.position) - Vector3::from(other.position)).norm() < 0.02
+            && (self.yaw - other.yaw).abs() < 0.05
+    }
 }
 
 /// Sideways offsets (m, UR5 scale) across the push.
@@ -129,6 +136,37 @@ fn turned_first(level: Vec<(f64, f64)>, tilt: f64) -> Vec<(f64, f64)> {
 /// behind it and to either side, most promising first, all inside
 /// `region` (duplicates after clamping removed).
 pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push, arm: &Arm) -> Vec<BasePose> {
+    placed_around(region, tree, push, arm, 1.0)
+}
+
+/// The same stances on the far side of the grip point: the base ahead of
+/// the push, the tool pulling the branch towards the arm. Tried when no
+/// stance behind the push carries it out ([`proposals`] first): a push
+/// towards the region's side of the tree clamps every stance behind it to
+/// the region's edge beside the trunk, where a crown the push swings far
+/// lands on the arm. One held-out episode of the bare UR10 (a 15 cm push
+/// down and towards the region on a trunk node 19 cm above the ground,
+/// 97 cm of crown motion) was refused from every stance behind the push;
+/// a grid over the whole region found it carried out from 1 m ahead of
+/// the push, the arm high and reaching back.
+pub fn pulling_proposals(
+    region: &BaseRegion,
+    tree: &Tree,
+    push: &Push,
+    arm: &Arm,
+) -> Vec<BasePose> {
+    placed_around(region, tree, push, arm, -1.0)
+}
+
+/// [`proposals`] (`side` 1: behind the push) or [`pulling_proposals`]
+/// (`side` −1: ahead of it).
+fn placed_around(
+    region: &BaseRegion,
+    tree: &Tree,
+    push: &Push,
+    arm: &Arm,
+    side: f64,
+) -> Vec<BasePose> {
     let scale = arm.reach() / UR5_REACH;
     let Some(branch) = tree.branch_direction(push.node) else {
         return Vec::new();
@@ -142,12 +180,15 @@ pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push, arm: &Arm) -> Ve
             ahead = Vector3::x();
         }
     }
-    let ahead = ahead.normalize();
+    let ahead = ahead.normalize() * side;
     let across = Vector3::z().cross(&ahead);
     let mut out: Vec<BasePose> = Vec::new();
     for (along, up) in stance_offsets(arm, push) {
-        for &side in &SIDEWAYS {
-            let wanted = grip.coords + ahead * along + across * (side * scale) + Vector3::z() * up;
+        for &sideways in &SIDEWAYS {
+            let wanted = grip.coords
+                + ahead * along
+                + across * (sideways * scale)
+                + Vector3::z() * (up * side);
             let position = wanted.sup(&region.min).inf(&region.max);
             let facing = grip.coords - position;
             let mut yaw = facing.y.atan2(facing.x);
@@ -155,10 +196,7 @@ pub fn proposals(region: &BaseRegion, tree: &Tree, push: &Push, arm: &Arm) -> Ve
                 yaw = yaw.clamp(lo, hi);
             }
             let pose = BasePose::upright([position.x, position.y, position.z], yaw);
-            let duplicate = out.iter().any(|b| {
-                (Vector3::from(b.position) - position).norm() < 0.02 && (b.yaw - yaw).abs() < 0.05
-            });
-            if !duplicate {
+            if !out.iter().any(|b| b.same_as(&pose)) {
                 out.push(pose);
             }
         }
@@ -209,6 +247,57 @@ pub fn tucked_starts(arm: &crate::robot::Arm) -> Vec<Config> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Pulling stances stand on the far side of the grip point from the
+    /// pushing ones, as many of them, each facing the grip point; within a
+    /// region on one side of the tree both are clamped into it.
+    #[test]
+    fn pulling_stances_stand_ahead_of_the_push_facing_the_grip() {
+        let tree = crate::tree::sca::generate(15, 3, &crate::tree::sca::ScaParams::default())
+            .expect("a tree");
+        let arm = Arm::ur5(Isometry3::identity());
+        let push = Push {
+            node: 5,
+            vector: Vector3::new(0.08, 0.02, -0.01),
+        };
+        let grip = tree.position(5) - tree.branch_direction(5).unwrap() * GRIP_OFFSET;
+        let ahead = Vector3::new(push.vector.x, push.vector.y, 0.0).normalize();
+        let wide = BaseRegion {
+            min: Vector3::new(-5.0, -5.0, -5.0),
+            max: Vector3::new(5.0, 5.0, 5.0),
+            yaw: None,
+        };
+        let behind = proposals(&wide, &tree, &push, &arm);
+        let pulling = pulling_proposals(&wide, &tree, &push, &arm);
+        assert!(!behind.is_empty());
+        assert_eq!(behind.len(), pulling.len());
+        for (poses, sign) in [(&behind, -1.0), (&pulling, 1.0)] {
+            for b in poses {
+                let offset = Vector3::from(b.position) - grip.coords;
+                let along = offset.dot(&ahead);
+                assert!(sign * along > 0.3, "{b:?}: {along} along the push");
+                let facing = -offset;
+                assert!((b.yaw - facing.y.atan2(facing.x)).abs() < 1e-9, "{b:?}");
+            }
+        }
+        // Mirrored through the grip point: the same distances from it.
+        for (b, p) in behind.iter().zip(&pulling) {
+            let d = |x: &BasePose| (Vector3::from(x.position) - grip.coords).norm();
+            assert!((d(b) - d(p)).abs() < 1e-9);
+        }
+        // A region behind the push only: every stance lands inside it.
+        let one_side = BaseRegion {
+            min: Vector3::new(grip.x - 2.0, grip.y - 2.0, 0.1),
+            max: Vector3::new(grip.x - 0.2, grip.y + 2.0, 1.0),
+            yaw: None,
+        };
+        for b in pulling_proposals(&one_side, &tree, &push, &arm) {
+            let p = Vector3::from(b.position);
+            for k in 0..3 {
+                assert!(p[k] >= one_side.min[k] - 1e-12 && p[k] <= one_side.max[k] + 1e-12);
+            }
+        }
+    }
 
     /// A push tilted 45° up or down is tried first from the stances turned
     /// with it (each at the same distance from the grip, up: lower and

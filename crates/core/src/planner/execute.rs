@@ -86,7 +86,17 @@ impl Run<'_> {
                 start: f.start,
             }],
             (None, Stance::Region(region)) => {
-                base::proposals(region, &self.query.tree, push, self.planner.robot())
+                // Behind the push first; then pulling from ahead of it
+                // (never in the cheap reach test: only pushes worth
+                // executing pay for the second side).
+                let (tree, arm) = (&self.query.tree, self.planner.robot());
+                let mut poses = base::proposals(region, tree, push, arm);
+                for pose in base::pulling_proposals(region, tree, push, arm) {
+                    if !poses.iter().any(|b| b.same_as(&pose)) {
+                        poses.push(pose);
+                    }
+                }
+                poses
                     .into_iter()
                     .filter_map(|pose| {
                         let arm = self.planner.placed_at(&pose.isometry());
