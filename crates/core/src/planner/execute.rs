@@ -76,19 +76,14 @@ impl Run<'_> {
         });
     }
 
-    /// The arm placements to try for `push`: the fixed base, or the region's
-    /// proposals, each with a collision-free start.
-    fn placements(&self, push: &Push) -> Vec<Placed> {
+    /// The base poses to try for `push`: the fixed base, or the region's
+    /// proposals behind the push, then pulling from ahead of it (never in
+    /// the cheap reach test: only pushes worth executing pay for the
+    /// second side).
+    fn poses(&self, push: &Push) -> Vec<BasePose> {
         match (self.fixed, &self.query.stance) {
-            (Some(f), _) => vec![Placed {
-                pose: f.pose,
-                arm: f.arm.clone(),
-                start: f.start,
-            }],
+            (Some(f), _) => vec![f.pose],
             (None, Stance::Region(region)) => {
-                // Behind the push first; then pulling from ahead of it
-                // (never in the cheap reach test: only pushes worth
-                // executing pay for the second side).
                 let (tree, arm) = (&self.query.tree, self.planner.robot());
                 let mut poses = base::proposals(region, tree, push, arm);
                 for pose in base::pulling_proposals(region, tree, push, arm) {
@@ -97,22 +92,30 @@ impl Run<'_> {
                     }
                 }
                 poses
-                    .into_iter()
-                    .filter_map(|pose| {
-                        let arm = self.planner.placed_at(&pose.isometry());
-                        let free = PlanningScene::new(&arm, self.rest, Allowed::default());
-                        let start = match self.query.start {
-                            Some(q) => free.config_valid(&q).then_some(q),
-                            None => base::tucked_starts(&arm.robot)
-                                .into_iter()
-                                .find(|q| free.config_valid(q)),
-                        }?;
-                        Some(Placed { pose, arm, start })
-                    })
-                    .collect()
             }
             (None, Stance::Fixed(_)) => Vec::new(),
         }
+    }
+
+    /// The arm at `pose` (one of [`Self::poses`]) with a collision-free
+    /// start, or `None` where it has none; the fixed base as placed.
+    fn place(&self, pose: BasePose) -> Option<Placed> {
+        if let Some(f) = self.fixed {
+            return Some(Placed {
+                pose: f.pose,
+                arm: f.arm.clone(),
+                start: f.start,
+            });
+        }
+        let arm = self.planner.placed_at(&pose.isometry());
+        let free = PlanningScene::new(&arm, self.rest, Allowed::default());
+        let start = match self.query.start {
+            Some(q) => free.config_valid(&q).then_some(q),
+            None => base::tucked_starts(&arm.robot)
+                .into_iter()
+                .find(|q| free.config_valid(q)),
+        }?;
+        Some(Placed { pose, arm, start })
     }
 
     /// Whether the arm can reach `push` from some placement (the cheap test).
@@ -154,12 +157,9 @@ impl Run<'_> {
         options.rrt.seed = self.query.seed;
         options.execution = self.query.execution;
         let full_iterations = options.rrt.max_iterations;
-        let placements = self.placements(push);
-        let mut outcome = if placements.is_empty() {
-            Outcome::StartInCollision
-        } else {
-            Outcome::Unreachable
-        };
+        let poses = self.poses(push);
+        // Until some pose has a collision-free start.
+        let mut outcome = Outcome::StartInCollision;
         // The deformed tree does not depend on the base: simulated once, as
         // far as the push lines get. The whole push first: its loads and
         // what it does for the objective are checked before any arm work.
@@ -208,7 +208,16 @@ impl Run<'_> {
         }
         let simulated = simulated.map(|s| s.1);
         let mut result = None;
-        for placed in placements {
+        for pose in poses {
+            // A base's start is looked for only when the base is tried:
+            // a push carried out from its first base, or refused on its
+            // simulation, costs no other base's collision checks.
+            let Some(placed) = self.place(pose) else {
+                continue;
+            };
+            if outcome == Outcome::StartInCollision {
+                outcome = Outcome::Unreachable;
+            }
             let remaining = self.remaining();
             if remaining.is_zero() {
                 break;
