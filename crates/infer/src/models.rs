@@ -359,26 +359,24 @@ pub fn predict_displacements(
 /// [`super::batcher::MAX_PAIRS`]) are queued together, so the model's
 /// sessions run them in parallel; a small call is split so that every
 /// session gets a share (a planner's search round runs on all cores).
-/// Graphs of different sizes (a path model's) are chunked by size, since
-/// a chunk is padded to its largest graph and costs the square of it: 64
-/// path graphs of a 500-node tree are 31 nodes at the median and 61 at
-/// most.
+/// Graphs of different sizes (a path model's) are sorted by size and
+/// chunked by [`size_chunks`], since a chunk is padded to its largest graph
+/// and costs the square of it: 64 path graphs of a 500-node tree are 31
+/// nodes at the median and 61 at most.
 fn run_in_chunks(
     model: &ServedModel,
     graphs: Vec<GraphInput>,
     control: &JobControl,
 ) -> Result<Vec<Vec<f32>>, InferError> {
     let count = graphs.len();
-    let largest = graphs.iter().map(|g| g.n).max().unwrap_or(1);
-    let per_chunk = super::batcher::graphs_per_batch(largest, MAX_BATCH, super::batcher::MAX_PAIRS)
-        .min(count.div_ceil(model.sessions.max(1)))
-        .max(1);
+    let most = MAX_BATCH.min(count.div_ceil(model.sessions.max(1))).max(1);
     let mut indexed: Vec<(usize, GraphInput)> = graphs.into_iter().enumerate().collect();
     indexed.sort_by_key(|(_, g)| g.n);
     let (order, sorted): (Vec<usize>, Vec<GraphInput>) = indexed.into_iter().unzip();
-    let pending = sorted
-        .chunks(per_chunk)
-        .map(|chunk| {
+    let pending = size_chunks(sorted.iter().map(|g| g.n), most, super::batcher::MAX_PAIRS)
+        .into_iter()
+        .map(|range| {
+            let chunk = &sorted[range];
             let b = batch(chunk)?;
             Ok((chunk, b.n, model.batcher.submit(b, control.clone())))
         })
@@ -393,6 +391,27 @@ fn run_in_chunks(
         }
     }
     Ok(out)
+}
+
+/// Consecutive ranges of graphs, sizes ascending, each as long as its
+/// padded batch (its count × its largest size squared) stays within
+/// `max_pairs` node pairs and `most` graphs: small graphs share a batch,
+/// large ones run a few at a time, and none is padded far beyond its size.
+fn size_chunks(
+    sizes: impl IntoIterator<Item = usize>,
+    most: usize,
+    max_pairs: usize,
+) -> Vec<std::ops::Range<usize>> {
+    let mut chunks: Vec<std::ops::Range<usize>> = Vec::new();
+    for (k, n) in sizes.into_iter().enumerate() {
+        match chunks.last_mut() {
+            Some(last) if last.len() < most && (last.len() + 1) * n * n <= max_pairs => {
+                last.end = k + 1;
+            }
+            _ => chunks.push(k..k + 1),
+        }
+    }
+    chunks
 }
 
 /// All non-root nodes ranked by affordance (renormalised over them, so
@@ -460,5 +479,23 @@ impl Drop for InferenceTimer<'_> {
     fn drop(&mut self) {
         metrics::histogram!("treemanip_inference_seconds", "model" => self.model.name.clone())
             .record(self.started.elapsed().as_secs_f64());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::size_chunks;
+
+    /// Small graphs share a chunk up to the pair budget; a larger one
+    /// starts its own, and one over the budget still runs, alone.
+    #[test]
+    fn chunks_hold_sorted_graphs_within_the_pair_and_count_limits() {
+        let sizes = [5, 5, 10, 10, 10, 30, 31, 40];
+        assert_eq!(size_chunks(sizes, 64, 1000), vec![0..5, 5..6, 6..7, 7..8]);
+        assert_eq!(
+            size_chunks(sizes, 2, 1000),
+            vec![0..2, 2..4, 4..5, 5..6, 6..7, 7..8]
+        );
+        assert!(size_chunks([], 64, 1000).is_empty());
     }
 }

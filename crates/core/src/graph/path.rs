@@ -99,14 +99,25 @@ pub const PATH_GRAPH_MAX_NODES: usize = crate::tree::FULL_GRAPH_MAX_NODES;
 /// joints that turn most); the others' branches are placed by the least
 /// turn, as for a side node in line with its path branch. The models learn
 /// from trees of at most 60 nodes, whose path graphs have 13 nodes at the
-/// median and 30 at the 99th percentile (`--shape all`, 7,320 pushes), while
-/// a 500-node orchard tree's have 32 at the median and up to 58: graphs
-/// kept within what training saw cost a quarter of a full one and err
-/// less. Held-out orchard trees (`eval sizes`, 96 pushes per size), e_N
-/// at N = 500 against a limit of 64: 7.29 against 7.59 cm (seed 1001) and
-/// 8.55 against 8.70 (seed 2002); at N = 200 6.11 both (seed 2002); 64
-/// pushes at N = 500 in 77 against 111 ms (seed 1001, 2 cores).
-pub const PATH_GRAPH_TRAINED_NODES: usize = 32;
+/// median and 30 at the 99th percentile (`--shape all`, 7,320 pushes),
+/// while a 500-node orchard tree's would have 32 at the median and up to 58
+/// with every side branch. Graphs kept within the bulk of what training saw
+/// err less and cost the square of their size. Held-out orchard trees
+/// (`eval sizes`, 96 pushes per size, the same weights), e_N (cm) at
+/// N = 100 / 200 / 500 for this limit:
+///
+/// | limit | seed 1001 | seed 2002 |
+/// | --- | --- | --- |
+/// | 16 | 5.39 / 6.79 / 6.73 | 6.24 / 6.09 / 8.10 |
+/// | 20 | 5.29 / 6.49 / 7.06 | 6.13 / 5.95 / 8.66 |
+/// | **24** | 5.28 / 6.50 / 7.08 | 6.18 / 5.92 / 8.37 |
+/// | 32 | 5.31 / 6.67 / 7.29 | 6.18 / 6.11 / 8.55 |
+/// | 64 | – / – / 7.59 | – / 6.11 / 8.70 |
+///
+/// 24 is at or below 32 everywhere and, for the 64 deepest pushes of a
+/// 500-node tree, 24-31 nodes a graph instead of 32: 75 against 100 ms of
+/// inference on 2 cores (AMD EPYC).
+pub const PATH_GRAPH_TRAINED_NODES: usize = 24;
 
 /// Most joints from the root to a contact that one path graph holds (its
 /// nodes less the contact's own).
@@ -408,9 +419,10 @@ mod tests {
         let graph = encode_forward_path(&tree, tip, &(Vector3::x() * 0.05)).unwrap();
         assert_eq!(graph.input.n, PATH_GRAPH_TRAINED_NODES);
         assert_eq!(graph.path_len, 21);
-        // 11 side nodes: both twigs of the 5 spine nodes nearest the
-        // contact, and one of the sixth.
-        assert_eq!(graph.hangs_from.iter().min(), Some(&15));
+        // 3 side nodes: both twigs of the spine node nearest the contact
+        // and one of the next.
+        assert_eq!(graph.hangs_from.len(), PATH_GRAPH_TRAINED_NODES - 21);
+        assert_eq!(graph.hangs_from.iter().min(), Some(&19));
         let placed = graph.positions(&tree, &vec![0.0; 3 * graph.input.n]);
         assert_eq!(placed.len(), tree.len());
         // A path longer than the side branches' limit stays whole, alone.
@@ -494,11 +506,20 @@ mod tests {
                 .collect();
             errors.sort_by(f64::total_cmp);
             let (median, worst) = (errors[errors.len() / 2], errors[errors.len() - 1]);
-            // f32 displacements: micrometres; where the only side node found
-            // is nearly in line with its path branch, the twist about them
-            // comes from the parent's least turn: a fraction of a millimetre.
-            assert!(median < 1e-6, "contact {contact}: median {median}");
-            assert!(worst < 5e-4, "contact {contact}: {worst}");
+            // f32 displacements: micrometres, where every side branch is in
+            // the graph (where the only side node found is nearly in line
+            // with its path branch, the twist about them comes from the
+            // parent's least turn: a fraction of a millimetre). Where some are cut (a graph at the limit), a path
+            // branch none of the kept ones shows is turned the least from
+            // its parent branch, so the subtrees off it miss their twist:
+            // up to 4 mm here.
+            if graph.input.n < PATH_GRAPH_TRAINED_NODES {
+                assert!(median < 1e-6, "contact {contact}: median {median}");
+                assert!(worst < 5e-4, "contact {contact}: {worst}");
+            } else {
+                assert!(median < 1e-3, "contact {contact}: median {median}");
+                assert!(worst < 5e-3, "contact {contact}: {worst}");
+            }
             // κ is relative to the path: it sums to zero along it.
             let kappa: f32 = (1..graph.path_len)
                 .map(|i| graph.input.edge(i - 1, i)[5])

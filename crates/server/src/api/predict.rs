@@ -129,7 +129,7 @@ pub async fn forward(
     let response = state
         .run_model_work("/v1/forward", timeout, move |control| {
             let predicted = predict_displacements(&model, &tree, &actions, &control)?;
-            let xyz = |v: Vector3<f64>| [v.x, v.y, v.z];
+            let xyz = |v: Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
             Ok(ForwardResponse {
                 positions: predicted
                     .iter()

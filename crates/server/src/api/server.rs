@@ -17,7 +17,7 @@ pub struct ServeArgs {
     /// Address to listen on (port 0 picks a free port).
     #[arg(long, env = "TREEMANIP_BIND", default_value = "127.0.0.1:8080")]
     bind: SocketAddr,
-    /// Largest tree accepted (nodes, at most 64).
+    /// Largest tree accepted (nodes, at most 512: `treemanip_core::tree::MAX_NODES`).
     #[arg(long, env = "TREEMANIP_MAX_NODES", default_value_t = treemanip_core::tree::MAX_NODES)]
     max_nodes: usize,
     /// Largest request body (bytes).
