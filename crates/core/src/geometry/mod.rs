@@ -9,10 +9,12 @@
 //! - [`aabb`]: axis-aligned boxes, the prefilter of every query;
 //! - [`world_shape`]: capsules, boxes and cylinders placed in the world,
 //!   whether two touch and their distance;
-//! - [`segment_box`]: a segment's distance to a box, in closed form.
+//! - [`segment_box`]: a segment's distance to a box, in closed form;
+//! - [`principal`]: the principal directions of a point set.
 
 pub mod aabb;
 pub mod convert;
+pub mod principal;
 pub mod segment;
 pub mod segment_box;
 pub mod shape;

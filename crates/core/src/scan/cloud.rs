@@ -3,7 +3,9 @@
 //! the caller allows, and a spread in three dimensions (a plane or a line
 //! of points is no tree).
 
-use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
+use nalgebra::{Point3, Vector3};
+
+use crate::geometry::principal::principal;
 
 /// Points (m) with optional per-point normals and colours (0-255 RGB).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -144,29 +146,10 @@ impl PointCloud {
     }
 }
 
-/// The spread (standard deviation, m) of `points` along their three
-/// principal directions, largest first, and those directions.
-pub fn principal_spread(points: &[Point3<f64>]) -> ([f64; 3], Matrix3<f64>) {
-    let n = points.len().max(1) as f64;
-    let mean = points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / n;
-    let mut cov = Matrix3::zeros();
-    for p in points {
-        let d = p.coords - mean;
-        cov += d * d.transpose();
-    }
-    cov /= n;
-    let eig = SymmetricEigen::new(cov);
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-    let spread = order.map(|i| eig.eigenvalues[i].max(0.0).sqrt());
-    let axes = Matrix3::from_columns(&order.map(|i| eig.eigenvectors.column(i).into_owned()));
-    (spread, axes)
-}
-
 /// Refuses points that lie in a plane or along a line: a scan of a wall,
 /// the ground or a single wire is not a tree.
 pub fn check_spread(points: &[Point3<f64>]) -> Result<(), CloudError> {
-    let (spread, _) = principal_spread(points);
+    let spread = principal(points).spread;
     if spread[1] < FLAT_SPREAD {
         return Err(CloudError::Degenerate {
             what: if spread[0] < FLAT_SPREAD {

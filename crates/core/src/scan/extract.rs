@@ -24,7 +24,8 @@
 use nalgebra::{Point3, Vector3};
 use petgraph::unionfind::UnionFind;
 
-use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread, principal_spread};
+use crate::geometry::principal::principal;
+use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread};
 use crate::scan::fine::{FineSkeleton, fine_skeleton};
 use crate::scan::levels::Geodesic;
 use crate::scan::neighbours::{Graph, PointIndex};
@@ -432,7 +433,7 @@ fn bridges(
     // apart from its twig is not.
     let elongated = |l: usize| {
         let pts: Vec<Point3<f64>> = of_part[l].iter().map(|&i| points[i]).collect();
-        let (spread, _) = principal_spread(&pts);
+        let spread = principal(&pts).spread;
         spread[0] >= ELONGATION * spread[1]
     };
     let big: Vec<usize> = (0..parts)

@@ -7,7 +7,7 @@
 
 use nalgebra::{Matrix3, Point3, Vector3};
 
-use crate::scan::cloud::principal_spread;
+use crate::geometry::principal::principal;
 use crate::scan::skeleton::Skeleton;
 
 /// Arm pieces used for an arm's axis: this far from the fork (m).
@@ -117,9 +117,8 @@ fn axis(points: &[Point3<f64>]) -> Option<(Point3<f64>, Vector3<f64>)> {
     if points.len() < 3 {
         return None;
     }
-    let mean = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64;
-    let (spread, axes) = principal_spread(points);
-    (spread[0] > 1e-4).then(|| (Point3::from(mean), axes.column(0).into_owned()))
+    let p = principal(points);
+    (p.spread[0] > 1e-4).then_some((p.mean, p.axes[0]))
 }
 
 /// The point with the least sum of squared distances to the lines.

@@ -7,7 +7,7 @@
 //! the straight stretches on either side meet ([`corner`]): the fine nodes
 //! round a bend off inside it.
 
-use crate::scan::cloud::principal_spread;
+use crate::geometry::principal::principal;
 use crate::scan::skeleton::{Skeleton, point_segment};
 
 /// Joints along a branch are at least this far apart (m): the generator's
@@ -143,10 +143,8 @@ fn corner(
         if pts.len() < 3 {
             return None;
         }
-        let centre =
-            pts.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>() / pts.len() as f64;
-        let (_, axes) = principal_spread(&pts);
-        Some((nalgebra::Point3::from(centre), axes.column(0).into_owned()))
+        let p = principal(&pts);
+        Some((p.mean, p.axes[0]))
     };
     let (c1, d1) = fit(before..=x)?;
     let (c2, d2) = fit(x..=after)?;

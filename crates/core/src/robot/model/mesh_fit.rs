@@ -23,9 +23,8 @@
 //! is what collides. How snugly is reported as the capsules' volume over
 //! the mesh's convex hull's ([`MeshFit::volume_ratio`]).
 
-use nalgebra::{
-    Isometry3, Matrix3, Point3, Rotation3, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
-};
+use crate::geometry::principal::principal;
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use parry3d_f64::math::Vec3;
 
 /// A capsule in a link's frame: the points within `radius` of [a, b] (m).
@@ -174,23 +173,14 @@ fn union_volume(capsules: &[Capsule]) -> f64 {
     inside as f64 * cell.x * cell.y * cell.z
 }
 
-/// The principal axes of `points`, largest spread first (unit; x, y, z
+/// The principal axes of `points`, largest spread first (unit; z, x, y
 /// when they are all one point).
 fn principal_axes(points: &[Point3<f64>]) -> [Vector3<f64>; 3] {
-    let n = points.len().max(1) as f64;
-    let mean = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
-    let cov = points.iter().fold(Matrix3::zeros(), |m, p| {
-        let d = p.coords - mean;
-        m + d * d.transpose()
-    }) / n;
-    let eig = SymmetricEigen::new(cov);
-    if eig.eigenvalues.max() <= 1e-18 {
+    let p = principal(points);
+    if p.spread[0] <= 1e-9 {
         return [Vector3::z(), Vector3::x(), Vector3::y()];
     }
-    let mut order = [0, 1, 2];
-    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-    order.map(|k| {
-        let axis = eig.eigenvectors.column(k).into_owned();
+    p.axes.map(|axis| {
         if axis.norm() > 1e-12 {
             axis.normalize()
         } else {
