@@ -179,8 +179,10 @@ fn forward_answers_match_the_library_and_batch_many_actions() {
         for c in 0..3 {
             let got = d[j][c].as_f64().unwrap();
             assert!((got - y.vectors[j * 3 + c] as f64).abs() < 1e-6);
+            // Single precision on the wire: p + Δp to a tenth of a
+            // micrometre or so at these coordinates.
             let p = answer["positions"][0][j][c].as_f64().unwrap();
-            assert!((p - (tree.position(j)[c] + got)).abs() < 1e-12);
+            assert!((p - (tree.position(j)[c] + got)).abs() < 1e-6);
         }
     }
     // The root does not move much; the pushed node moves roughly with the push.
