@@ -184,6 +184,17 @@ mod tests {
     use super::*;
     use nalgebra::Point3;
 
+    /// One unbranched fine skeleton through `positions`, every node `radius`
+    /// thick.
+    fn chain(positions: Vec<Point3<f64>>, radius: f64) -> Skeleton {
+        let n = positions.len();
+        Skeleton {
+            positions,
+            parents: (0..n).map(|i| i.checked_sub(1)).collect(),
+            radius: vec![radius; n],
+        }
+    }
+
     #[test]
     fn a_bent_branch_keeps_its_bend_and_long_stretches_are_split() {
         // Up 0.3 m in 1 cm steps, then sideways 0.05 m.
@@ -192,11 +203,7 @@ mod tests {
             .collect();
         positions.extend((1..=5).map(|i| Point3::new(i as f64 * 0.01, 0.0, 0.3)));
         let n = positions.len();
-        let fine = Skeleton {
-            positions,
-            parents: (0..n).map(|i| i.checked_sub(1)).collect(),
-            radius: vec![0.01; n],
-        };
+        let fine = chain(positions, 0.01);
         let (out, confidence) = simplify(&fine, &vec![1.0; n], 0.12);
         assert_eq!(confidence.len(), out.len());
         // The bend at 0.3 m, the tip and the 0.3 m stretch in three.
@@ -227,11 +234,7 @@ mod tests {
         positions.push(Point3::new(0.005, 0.0, 0.295));
         positions.extend((1..=20).map(|i| Point3::new(i as f64 * 0.01, 0.0, 0.3)));
         let n = positions.len();
-        let fine = Skeleton {
-            positions,
-            parents: (0..n).map(|i| i.checked_sub(1)).collect(),
-            radius: vec![0.012; n],
-        };
+        let fine = chain(positions, 0.012);
         let nearest = |out: &Skeleton| {
             out.positions
                 .iter()
