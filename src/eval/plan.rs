@@ -26,8 +26,9 @@ use crate::tree::{FULL_GRAPH_MAX_NODES, Tree};
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Setting {
     pub strategy: Strategy,
-    /// With a base region (±0.5 m around the default base in x and y,
-    /// 0.1-1.0 m in z) instead of the fixed default base.
+    /// With a base region ([`BaseArea`]: by default the paper's, ±0.5 m
+    /// around the default base in x and y, 0.1-1.0 m in z) instead of the
+    /// fixed default base.
     pub region: bool,
 }
 
@@ -53,6 +54,44 @@ impl Setting {
                     .map(move |strategy| Setting { strategy, region })
             })
             .collect()
+    }
+}
+
+/// Where a `region` setting lets the base stand.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BaseArea {
+    /// The paper's: the default base ±0.5 m in x and y
+    /// ([`evaluation_region`]), on one side of the trunk. Sized for trees
+    /// of 10-30 nodes; a 200-node orchard tree's crown reaches over it.
+    #[default]
+    Paper,
+    /// A square of ± this half width (m) in x and y around the trunk: a
+    /// mobile base that drives around the tree, as in an orchard row.
+    AroundTree(f64),
+}
+
+impl BaseArea {
+    /// The region the base may take, 0.1-1.0 m high either way.
+    pub fn region(self) -> BaseRegion {
+        match self {
+            BaseArea::Paper => evaluation_region(),
+            BaseArea::AroundTree(w) => BaseRegion {
+                min: Vector3::new(-w, -w, 0.1),
+                max: Vector3::new(w, w, 1.0),
+                yaw: None,
+            },
+        }
+    }
+
+    /// The region in words, for a report.
+    pub fn describe(self) -> String {
+        match self {
+            BaseArea::Paper => "x and y within ±0.5 m of the default base, z 0.1-1.0 m".to_owned(),
+            BaseArea::AroundTree(w) => format!(
+                "x and y within ±{w} m of the trunk (a base that drives around the tree), z 0.1-1.0 m"
+            ),
+        }
     }
 }
 
@@ -118,7 +157,9 @@ pub fn plan_as_served(
     planner.plan(query, contact, Some(forward))
 }
 
-/// Plans one episode in one setting.
+/// Plans one episode in one setting; a `region` setting's base stands
+/// in `area`.
+#[allow(clippy::too_many_arguments)]
 pub fn plan_episode(
     planner: &Planner,
     policy: &ServedModel,
@@ -127,6 +168,7 @@ pub fn plan_episode(
     tree: &Tree,
     episode: &Episode,
     setting: Setting,
+    area: BaseArea,
 ) -> EpisodeResult {
     let targets = episode.final_positions.clone();
     let mut query = Query::new(tree.clone(), targets.clone());
@@ -137,7 +179,7 @@ pub fn plan_episode(
     query.strategy = setting.strategy;
     query.budget = Duration::from_secs(2);
     if setting.region {
-        query.stance = Stance::Region(evaluation_region());
+        query.stance = Stance::Region(area.region());
     }
     let no_action_error = max_node_error(tree.positions(), &targets);
     let result = plan_as_served(planner, &query, policy, forward);
@@ -284,4 +326,32 @@ pub fn to_markdown(rows: &[SettingSummary]) -> String {
         ));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The paper's region stands beside the trunk on one side; the area
+    /// around the tree reaches every side of it, as high as the paper's.
+    #[test]
+    fn the_area_around_the_tree_surrounds_the_trunk() {
+        let paper = BaseArea::Paper.region();
+        assert_eq!(paper, evaluation_region());
+        assert!(paper.max.x <= 0.0 + 1e-12, "{paper:?}");
+        let around = BaseArea::AroundTree(2.0).region();
+        for (x, y) in [(1.5, 0.0), (-1.5, 0.0), (0.0, 1.5), (0.0, -1.5)] {
+            let p = Vector3::new(x, y, 0.5);
+            assert!(
+                p >= around.min && p <= around.max,
+                "{p:?} outside {around:?}"
+            );
+        }
+        assert_eq!((around.min.z, around.max.z), (paper.min.z, paper.max.z));
+        assert!(
+            BaseArea::AroundTree(2.0)
+                .describe()
+                .contains("±2 m of the trunk")
+        );
+    }
 }

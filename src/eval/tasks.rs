@@ -22,7 +22,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use super::plan::{evaluation_region, percentile};
+use super::plan::{BaseArea, percentile};
 use crate::dataset::Episode;
 use crate::geometry::shape::Shape;
 use crate::infer::models::ServedModel;
@@ -242,15 +242,16 @@ pub fn run_task(
     objective: &Objective,
     limits: Option<&Limits>,
     strategy: Strategy,
-    region: bool,
+    // The base's region, or the fixed default base.
+    region: Option<BaseArea>,
     oracle_residual: Option<f64>,
 ) -> TaskResult {
     let mut query = Query::with_objective(tree.clone(), objective.clone());
     query.strategy = strategy;
     query.limits = limits.copied();
     query.budget = Duration::from_secs(2);
-    if region {
-        query.stance = Stance::Region(evaluation_region());
+    if let Some(area) = region {
+        query.stance = Stance::Region(area.region());
     }
     let no_action = objective.residual(tree, tree.positions());
     let (plan, ms, outcomes, predicted_stress) =

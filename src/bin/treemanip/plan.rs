@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use treemanip::dataset::Split;
 use treemanip::dataset::collect::{CollectConfig, collect_size};
 use treemanip::eval::plan::{
-    EpisodeResult, Setting, evaluation_region, plan_episode, policy_top_error, summarise,
+    BaseArea, EpisodeResult, Setting, evaluation_region, plan_episode, policy_top_error, summarise,
     to_markdown,
 };
 use treemanip::eval::plots::rank_histogram_svg;
@@ -300,6 +300,23 @@ pub struct EvalPlanArgs {
     /// all six). For quick comparisons; write them with `--out` elsewhere.
     #[arg(long, value_delimiter = ',')]
     settings: Vec<String>,
+    /// Let the `region` settings' base stand anywhere within this half
+    /// width (m) of the trunk in x and y, a base that drives around the
+    /// tree, instead of the paper's region beside it (sized for 10-30-node
+    /// trees, under the crown of larger ones).
+    #[arg(long)]
+    around_tree: Option<f64>,
+}
+
+/// The base's area for `--around-tree` (none: the paper's region).
+pub fn base_area(around_tree: Option<f64>) -> anyhow::Result<BaseArea> {
+    match around_tree {
+        None => Ok(BaseArea::Paper),
+        Some(w) if w.is_finite() && w > 0.0 && w <= 20.0 => Ok(BaseArea::AroundTree(w)),
+        Some(w) => {
+            bail!("--around-tree must be a half width in metres, above 0 and at most 20 (got {w})")
+        }
+    }
 }
 
 /// The arm a `--robot` value names ([`treemanip::robot::catalog::resolve`]).
@@ -312,6 +329,7 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
     if args.per_size == 0 {
         bail!("--per-size must be at least 1");
     }
+    let area = base_area(args.around_tree)?;
     let started = Instant::now();
     let data = test_episodes(&args.sizes.0, args.per_size, args.data.seed)?;
     let episodes: Vec<_> = data
@@ -360,7 +378,7 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
             .map(|&(n, tree, e)| {
                 // The forward model the server answers this size with.
                 let forward = set.forward_for(n).unwrap_or(forward);
-                let r = plan_episode(&planner, policy, forward, n, tree, e, setting);
+                let r = plan_episode(&planner, policy, forward, n, tree, e, setting, area);
                 bar.inc(1);
                 r
             })
@@ -411,7 +429,7 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
     let table = to_markdown(&rows);
     let cpu = treemanip::nn::train::checkpoint::cpu_model();
     let md = format!(
-        "# Planning evaluation\n\n`treemanip eval plan --per-size {} --seed {}{}` on the test split, N = {:?}, {} episodes per setting, one at a time; CPU: {cpu}, {} threads.\nThe target is the episode's final shape; the planner gets the tree and the target only and ranks with the contact policy. Executed error: the planned push run in the simulator, largest node distance to the target; an episode with no plan counts as No Action. Base region: x and y within ±0.5 m of the default base, z 0.1-1.0 m. {robot_note}\n\n{table}",
+        "# Planning evaluation\n\n`treemanip eval plan --per-size {} --seed {}{}{}` on the test split, N = {:?}, {} episodes per setting, one at a time; CPU: {cpu}, {} threads.\nThe target is the episode's final shape; the planner gets the tree and the target only and ranks with the contact policy. Executed error: the planned push run in the simulator, largest node distance to the target; an episode with no plan counts as No Action. Base region: {}. {robot_note}\n\n{table}",
         args.per_size,
         args.data.seed,
         if suffix.is_empty() {
@@ -419,9 +437,12 @@ pub fn eval_plan(args: EvalPlanArgs) -> anyhow::Result<()> {
         } else {
             format!(" --robot {}", args.robot)
         },
+        args.around_tree
+            .map_or(String::new(), |w| format!(" --around-tree {w}")),
         args.sizes.0,
         episodes.len(),
-        rayon::current_num_threads()
+        rayon::current_num_threads(),
+        area.describe()
     );
     std::fs::write(args.out.join(format!("plan_eval{suffix}.md")), &md)?;
     std::fs::write(

@@ -51,12 +51,17 @@ pub struct EvalTasksArgs {
     /// Where to write tasks_eval.{md,json,svg}.
     #[arg(long, default_value = "docs/results")]
     out: PathBuf,
+    /// As `eval plan --around-tree`: the `region` settings' base anywhere
+    /// within this half width (m) of the trunk.
+    #[arg(long)]
+    around_tree: Option<f64>,
 }
 
 pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
     if args.per_size == 0 {
         bail!("--per-size must be at least 1");
     }
+    let area = crate::plan::base_area(args.around_tree)?;
     if !(args.max_stress > 0.0 && args.max_contact_force > 0.0) {
         bail!("--max-stress and --max-contact-force must be positive");
     }
@@ -165,7 +170,7 @@ pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
                         objective,
                         task_limits,
                         strategy,
-                        region,
+                        region.then_some(area),
                         *oracle,
                     );
                     bar.inc(1);
@@ -244,10 +249,12 @@ pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
         None => format!("| {name} | 0 | – | – | – | – | – | – | – |\n"),
     };
     let md = format!(
-        "# Orchard tasks\n\n`treemanip eval tasks --per-size {} --seed {} --max-stress {:.0}` on the test split, N = {:?}; CPU: {cpu}, {} threads. Limits: {:.0} MPa bending stress, {:.0} N contact force, for `clear` and `reach`{}.\n\nEvery planned push is executed in the simulator; success, residual and loads are the simulator's. Success: the objective is met (`clear`: every branch at least the 1 cm margin from the 4 cm fruit; `reach`: the node inside the 3 cm sphere) and no limit is exceeded. `shape_masked` has no success threshold; its residual is the executed largest distance over the listed third of the nodes. The oracle ignores the arm: the simulator searches pushes from the same geometric seeds with 256 predictions. Base region: x and y within ±0.5 m of the default base, z 0.1-1.0 m.\n\n{table}\n## Loads read from predicted positions\n\nOn the test episodes' own pushes: the peak bending stress and the contact force `PushLoads::from_positions` reads from positions, against the simulator's. `let through` counts pushes the positions put within the stress limit that the simulator puts more than 10 % over it (the planner never relies on that alone: the executed push's simulation is checked again).\n\n| positions | pushes | stress error median | p90 | force error median | simulated over the limit | let through > 10 % | simulated stress p50 / p90 | simulated force p50 / p90 |\n|---|---|---|---|---|---|---|---|---|\n{}{}",
+        "# Orchard tasks\n\n`treemanip eval tasks --per-size {} --seed {} --max-stress {:.0}{}` on the test split, N = {:?}; CPU: {cpu}, {} threads. Limits: {:.0} MPa bending stress, {:.0} N contact force, for `clear` and `reach`{}.\n\nEvery planned push is executed in the simulator; success, residual and loads are the simulator's. Success: the objective is met (`clear`: every branch at least the 1 cm margin from the 4 cm fruit; `reach`: the node inside the 3 cm sphere) and no limit is exceeded. `shape_masked` has no success threshold; its residual is the executed largest distance over the listed third of the nodes. The oracle ignores the arm: the simulator searches pushes from the same geometric seeds with 256 predictions. Base region: {}.\n\n{table}\n## Loads read from predicted positions\n\nOn the test episodes' own pushes: the peak bending stress and the contact force `PushLoads::from_positions` reads from positions, against the simulator's. `let through` counts pushes the positions put within the stress limit that the simulator puts more than 10 % over it (the planner never relies on that alone: the executed push's simulation is checked again).\n\n| positions | pushes | stress error median | p90 | force error median | simulated over the limit | let through > 10 % | simulated stress p50 / p90 | simulated force p50 / p90 |\n|---|---|---|---|---|---|---|---|---|\n{}{}",
         args.per_size,
         args.seed,
         args.max_stress,
+        args.around_tree
+            .map_or(String::new(), |w| format!(" --around-tree {w}")),
         args.sizes.0,
         rayon::current_num_threads(),
         limits.max_stress / 1e6,
@@ -257,6 +264,7 @@ pub fn eval_tasks(args: EvalTasksArgs) -> anyhow::Result<()> {
         } else {
             "; `shape_masked` is planned without limits, as the paper's shape benchmark (its targets come from unconstrained pushes)"
         },
+        area.describe(),
         accuracy_md("forward model's prediction", &accuracy),
         accuracy_md("the simulator's own (twist ignored)", &from_true_positions),
     );
