@@ -437,7 +437,8 @@ fn eval_ranks_executes_every_rank() {
 fn the_default_search_budget_follows_the_graphs_size_and_bounds_predictions() {
     use treemanip::planner::default_evaluations;
     // A prediction costs in proportion to N(N-1): fewer pushes for bigger
-    // trees, more with a base region, within 16..=96.
+    // trees (up to the fully connected models' limit), more with a base
+    // region, within 16..=96.
     assert_eq!(default_evaluations(15, false), 60);
     assert_eq!(default_evaluations(30, false), 16);
     assert_eq!(default_evaluations(10, true), 96);
@@ -450,6 +451,14 @@ fn the_default_search_budget_follows_the_graphs_size_and_bounds_predictions() {
             );
             assert!(b <= a && (16..=96).contains(&b));
         }
+    }
+    // Above the fully connected models' 64 nodes a prediction reads a path
+    // graph of at most 24 nodes (or simulates one path): the budget of a
+    // 24-node graph, whatever the tree's size, not the 16 its N² would give.
+    for n in [65, 200, 512] {
+        assert_eq!(default_evaluations(n, true), 48 * 30 * 29 / (24 * 23));
+        assert_eq!(default_evaluations(n, false), 60 * 15 * 14 / (24 * 23));
+        assert!(default_evaluations(n, true) > default_evaluations(64, true));
     }
     let (tree, targets) = episode(20, 5);
     let mut q = query(&tree, &targets, Strategy::Physics, false);
