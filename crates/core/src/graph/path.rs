@@ -324,7 +324,9 @@ fn best_rotation(pairs: &[(Vector3<f64>, Vector3<f64>, f64)]) -> Option<Rotation
     let svd = b.svd(true, true);
     let mut values = svd.singular_values;
     values.as_mut_slice().sort_by(|a, b| b.total_cmp(a));
-    if values[1] < 1e-3 * values[0] {
+    // No usable pair at all (every direction of zero length) leaves B zero,
+    // which the ratio below would not catch.
+    if values[0] < 1e-12 || values[1] < 1e-3 * values[0] {
         return None;
     }
     let (u, v_t) = (svd.u?, svd.v_t?);
@@ -439,6 +441,21 @@ mod tests {
                 max: PATH_GRAPH_MAX_NODES - 1
             })
         );
+    }
+
+    /// One direction, or none usable, leaves the turn about it free: no
+    /// rotation is claimed; two apart fix it.
+    #[test]
+    fn a_rotation_is_fitted_only_where_two_directions_fix_it() {
+        let (x, y) = (Vector3::new(0.0, 0.0, 0.1), Vector3::new(0.01, 0.0, 0.1));
+        assert!(best_rotation(&[(x, y, 1.0)]).is_none());
+        assert!(best_rotation(&[(x, Vector3::zeros(), 1.0)]).is_none());
+        assert!(best_rotation(&[]).is_none());
+        let turn = Rotation3::new(Vector3::new(0.1, -0.2, 0.3));
+        let side = Vector3::new(0.08, 0.0, 0.05);
+        let fitted = best_rotation(&[(x, turn * x, 1.0), (side, turn * side, 1.0)]).unwrap();
+        let off = (fitted.matrix() - turn.matrix()).norm();
+        assert!(off < 1e-7, "{off}");
     }
 
     /// The prior placed on the graph's nodes alone is the whole tree's
