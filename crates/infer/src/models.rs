@@ -405,7 +405,9 @@ fn size_chunks(
     let mut chunks: Vec<std::ops::Range<usize>> = Vec::new();
     for (k, n) in sizes.into_iter().enumerate() {
         match chunks.last_mut() {
-            Some(last) if last.len() < most && (last.len() + 1) * n * n <= max_pairs => {
+            // The batcher's own rule for how many graphs of this size a
+            // batch holds; sorted ascending, `n` is the chunk's largest.
+            Some(last) if last.len() < super::batcher::graphs_per_batch(n, most, max_pairs) => {
                 last.end = k + 1;
             }
             _ => chunks.push(k..k + 1),
