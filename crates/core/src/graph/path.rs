@@ -526,10 +526,10 @@ mod tests {
             // f32 displacements: micrometres, where every side branch is in
             // the graph (where the only side node found is nearly in line
             // with its path branch, the twist about them comes from the
-            // parent's least turn: a fraction of a millimetre). Where some are cut (a graph at the limit), a path
-            // branch none of the kept ones shows is turned the least from
-            // its parent branch, so the subtrees off it miss their twist:
-            // up to 4 mm here.
+            // parent's least turn: a fraction of a millimetre). Where some
+            // are cut (a graph at the limit), a path branch none of the kept
+            // ones shows is turned the least from its parent branch, so the
+            // subtrees off it miss their twist: up to 4 mm here.
             if graph.input.n < PATH_GRAPH_TRAINED_NODES {
                 assert!(median < 1e-6, "contact {contact}: median {median}");
                 assert!(worst < 5e-4, "contact {contact}: {worst}");
