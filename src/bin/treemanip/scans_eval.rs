@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 use treemanip::eval::scans::{
-    EndToEnd, LEAVES_PER_TWIG, default_conditions, end_to_end, evaluate_condition, peer_row,
-    test_trees, to_markdown, write_clouds,
+    EndToEnd, LEAVES_PER_TWIG, PEERS, default_conditions, end_to_end, evaluate_condition,
+    independent_rows, peer_row, test_trees, to_markdown, write_clouds,
 };
 use treemanip::planner::objective::{DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS, Limits};
 
@@ -34,10 +34,15 @@ pub struct EvalScansArgs {
     /// for `scripts/scan-peers`.
     #[arg(long)]
     write_clouds: Option<PathBuf>,
-    /// Score a peer's answers found here (`scripts/scan-peers` wrote them
+    /// Score the peers' answers found here (`scripts/scan-peers` wrote them
     /// beside the clouds) side by side with ours.
     #[arg(long)]
     peers: Option<PathBuf>,
+    /// Also score ours and the peers on the clouds and true cylinders of
+    /// an independent scanner found here (`scripts/scan-independent`,
+    /// then `scripts/scan-peers` on the same folder).
+    #[arg(long)]
+    independent: Option<PathBuf>,
     /// Where the table (`scan_eval.md`) and the rows (`scan_eval.json`) go.
     #[arg(long, default_value = "docs/results")]
     out: PathBuf,
@@ -70,10 +75,17 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
             write_clouds(&trees, &condition, args.seed, dir)?;
         }
         let (row, extractions) = evaluate_condition(&trees, &condition, args.seed);
-        if let Some(dir) = &args.peers
-            && let Some(peer) = peer_row(&trees, &condition, dir)?
-        {
-            peers.push((row.clone(), peer));
+        if let Some(dir) = &args.peers {
+            let mut answered = Vec::new();
+            for peer in PEERS {
+                answered.extend(peer_row(&trees, &condition, dir, peer)?);
+            }
+            if !answered.is_empty() {
+                let mut ours = row.clone();
+                ours.label = format!("treemanip: {}", ours.label);
+                peers.push(ours);
+                peers.extend(answered);
+            }
         }
         eprintln!(
             "{}: recall {:.3}, precision {:.3} (1.0 r), radius {:.2} mm, {:.3} s per 100k points",
@@ -97,12 +109,22 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
         rows.push(row);
     }
     let mut md = format!(
-        "# Trees from scans\n\nRegenerate: `treemanip eval scans --sizes {}..={} --per-size {} --tasks-per-tree {} --seed {}` ({} test-split trees; {:.0} s on this machine).\n\nSynthetic scans (`treemanip trees scan`): viewpoints 1.5 m from the trunk at half the tree's height, 40,000 surface samples per viewpoint before occlusion, depth noise σ at that range growing with the square of range; leaves are 5 cm discs near the twigs; every point has its colour (bark brown, leaf green) under varied light, kept only in the RGB conditions, where the extraction drops foliage-green points. Scores as in `crates/core/src/scan/score.rs` (Smart-Tree's recall and precision at t × the true radius).\n\n",
+        "# Trees from scans\n\nRegenerate: `treemanip eval scans --sizes {}..={} --per-size {} --tasks-per-tree {} --seed {}{}` ({} test-split trees; {:.0} s on this machine). DIR holds the clouds an earlier run's `--write-clouds DIR` wrote, with `scripts/scan-peers DIR`'s answers; IND what `scripts/scan-independent IND` and then `scripts/scan-peers IND` wrote.\n\nSynthetic scans (`treemanip trees scan`): viewpoints 1.5 m from the trunk at half the tree's height, 40,000 surface samples per viewpoint before occlusion, depth noise σ at that range growing with the square of range; leaves are 5 cm discs near the twigs; every point has its colour (bark brown, leaf green) under varied light, kept only in the RGB conditions, where the extraction drops foliage-green points. Scores as in `crates/core/src/scan/score.rs` (Smart-Tree's recall and precision at t × the true radius).\n\n",
         args.sizes.0.first().copied().unwrap_or(0),
         args.sizes.0.last().copied().unwrap_or(0),
         args.per_size,
         args.tasks_per_tree,
         args.seed,
+        [
+            args.headline_only.then(|| " --headline-only".to_owned()),
+            args.peers.as_ref().map(|_| " --peers DIR".to_owned()),
+            args.independent
+                .as_ref()
+                .map(|_| " --independent IND".to_owned()),
+        ]
+        .into_iter()
+        .flatten()
+        .collect::<String>(),
         trees.len(),
         started.elapsed().as_secs_f64()
     );
@@ -127,33 +149,32 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
         }
     }
     if !peers.is_empty() {
-        md += "\n## Side by side: PyTLidar 1.1.2 (TreeQSM's port) on the same clouds\n\n`scripts/scan-peers DIR` on the clouds `--write-clouds DIR` wrote, scored by the same code; PyTLidar's time is its repeat run (numba compiled), ours the extraction's.\n\n";
-        let mut rows = Vec::new();
-        for (ours, peer) in &peers {
-            rows.push(ours.clone());
-            rows.push(peer.clone());
-        }
-        let table = to_markdown(&rows);
-        // Label alternate rows: ours, then the peer's.
-        let mut k = 0;
-        for line in table.lines() {
-            if line.starts_with("| ")
-                && !line.starts_with("| condition")
-                && !line.starts_with("| ---")
-            {
-                let who = if k % 2 == 0 { "treemanip" } else { "PyTLidar" };
-                md += &line.replacen("| ", &format!("| {who}: "), 1);
-                k += 1;
-            } else {
-                md += line;
-            }
-            md += "\n";
-        }
+        md += &format!(
+            "\n## Side by side: {} on the same clouds\n\n`scripts/scan-peers DIR` on the clouds `--write-clouds DIR` wrote, scored by the same code; a peer's time is its repeat run (compiled kernels), ours the extraction's. sylva-rs's parameters are `SYLVA_PARAMS` in `scripts/scan-peers` (its defaults are for forest trees).\n\n",
+            PEERS.map(|p| p.name).join(", ")
+        );
+        md += &to_markdown(&peers);
+    }
+    let independent = match &args.independent {
+        Some(dir) => independent_rows(dir, &PEERS)?,
+        None => Vec::new(),
+    };
+    if !independent.is_empty() {
+        md += &format!(
+            "\n## An independent scanner: sylva-rs's trees and beam-model scans\n\n`scripts/scan-independent DIR` (sylva-rs 0.3.0's `synthetic.tree_model`: broadleaf, eucalypt, savanna and conifer archetypes, 5 cm stems, 2.5 m tall, twigs to 4 mm; `synthetic.scan` with a RIEGL VZ-400i's beam, {:.0} mm range noise, 1 or 3 viewpoints 1.5 m out), then `scripts/scan-peers DIR`; scored against the models' own cylinders. Nothing of ours was tuned on these trees.\n\n",
+            treemanip::eval::scans::INDEPENDENT_NOISE * 1e3
+        );
+        md += &to_markdown(&independent);
     }
     std::fs::create_dir_all(&args.out)?;
     let path = args.out.join("scan_eval.md");
     std::fs::write(&path, &md).with_context(|| format!("cannot write {}", path.display()))?;
-    let json = serde_json::json!({ "conditions": rows, "end_to_end": ends });
+    let json = serde_json::json!({
+        "conditions": rows,
+        "end_to_end": ends,
+        "peers": peers,
+        "independent": independent,
+    });
     std::fs::write(
         args.out.join("scan_eval.json"),
         serde_json::to_string_pretty(&json)?,
