@@ -6,6 +6,13 @@
 //! unlike the algebraic fit, does not shrink the circle when only an arc
 //! is seen. `coverage` is the angle the points span around the centre: a
 //! slice seen from one side spans about half a turn.
+//!
+//! The geometric fit is itself biased outwards where the points surround
+//! the centre: noise across the radius moves a point farther from the
+//! centre whichever way it goes, so the mean distance is about
+//! r + σ²/(2r) (Chernov, *Circular and Linear Regression*, 2010, ch. 6);
+//! at 2 mm noise on a 5 mm twig that is 0.4 mm.
+//! [`Circle::debiased_radius`] takes it off.
 
 use nalgebra::{Matrix3, Vector2, Vector3};
 
@@ -18,6 +25,21 @@ pub struct Circle {
     pub rms: f64,
     /// The angle (rad, 0 to 2π) the points span around the centre.
     pub coverage: f64,
+}
+
+impl Circle {
+    /// The radius less the geometric fit's outward bias, rms²/(2r) with the
+    /// residual standing in for the noise. Only where the points go most of
+    /// the way round: on an arc seen from one side the depth noise lies
+    /// along the radius near the arc's middle and the bias was not there
+    /// (measured: the correction made one-viewpoint radii worse), so it is
+    /// phased in between 5/8 and 7/8 of a turn. Never below half the
+    /// fitted radius.
+    pub fn debiased_radius(&self) -> f64 {
+        use std::f64::consts::PI;
+        let weight = ((self.coverage - 1.25 * PI) / (0.5 * PI)).clamp(0.0, 1.0);
+        (self.radius - weight * self.rms * self.rms / (2.0 * self.radius)).max(0.5 * self.radius)
+    }
 }
 
 /// Fits a circle to `points`; `None` for fewer than three points or points
@@ -110,6 +132,37 @@ mod tests {
         let half = fit_circle(&arc(c, 0.006, 0.2, 3.2, 30)).unwrap();
         assert!((half.centre - c).norm() < 1e-9 && (half.radius - 0.006).abs() < 1e-9);
         assert!((half.coverage - 3.0).abs() < 1e-9);
+    }
+
+    /// Noisy points all round a 5 mm circle: the fit comes out too large
+    /// by about σ²/(2r) and the debiased radius takes that off; on half an
+    /// arc nothing is taken off.
+    #[test]
+    fn the_debiased_radius_removes_the_outward_bias_of_a_full_circle() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let noise = Normal::new(0.0, 0.0015).unwrap();
+        let (r, c) = (0.005, Vector2::new(0.1, 0.2));
+        let (mut raw, mut debiased) = (0.0, 0.0);
+        let trials = 200;
+        for _ in 0..trials {
+            let mut points = arc(c, r, 0.0, 6.2, 60);
+            for p in &mut points {
+                *p += Vector2::new(noise.sample(&mut rng), noise.sample(&mut rng));
+            }
+            let fit = fit_circle(&points).unwrap();
+            raw += fit.radius / trials as f64;
+            debiased += fit.debiased_radius() / trials as f64;
+        }
+        let bias = 0.0015f64.powi(2) / (2.0 * r);
+        assert!(
+            (raw - r - bias).abs() < 0.3 * bias,
+            "raw {raw}, expected bias {bias}"
+        );
+        assert!((debiased - r).abs() < 0.3 * bias, "debiased {debiased}");
+        let half = fit_circle(&arc(c, r, 0.0, 3.0, 30)).unwrap();
+        assert_eq!(half.debiased_radius(), half.radius);
     }
 
     #[test]

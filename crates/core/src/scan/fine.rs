@@ -98,7 +98,7 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) ->
         match fit {
             Some((centre, c)) => {
                 positions.push(centre);
-                fitted.push(Some(c.radius));
+                fitted.push(Some(c.debiased_radius()));
                 confidence.push(support * (c.coverage / FULL_COVERAGE).min(1.0));
             }
             None => {
