@@ -150,7 +150,7 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
     }
     if !peers.is_empty() {
         md += &format!(
-            "\n## Side by side: {} on the same clouds\n\n`scripts/scan-peers DIR` on the clouds `--write-clouds DIR` wrote, scored by the same code; a peer's time is its repeat run (compiled kernels), ours the extraction's. sylva-rs's parameters are `SYLVA_PARAMS` in `scripts/scan-peers` (its defaults are for forest trees).\n\n",
+            "\n## Side by side: {} on the same clouds\n\n`scripts/scan-peers DIR` on the clouds `--write-clouds DIR` wrote, scored by the same code; a peer's time is its repeat run (compiled kernels), ours the extraction's. sylva-rs's parameters are `SYLVA_PARAMS` in `scripts/scan-peers` (its defaults are for forest trees); pc-skeletor fits no radius.\n\n",
             PEERS.map(|p| p.name).join(", ")
         );
         md += &to_markdown(&peers);

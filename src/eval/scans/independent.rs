@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use super::peers::{Cylinders, Peer, cylinders_skeleton, read_answer};
+use super::peers::{Cylinders, Peer, cylinders_skeleton, peer_summary, read_answer};
 use super::rows::{Condition, ConditionRow, TreeRow, summarise};
 use crate::scan::{ExtractParams, PointCloud, Skeleton, extract};
 
@@ -131,9 +131,7 @@ pub fn independent_rows(dir: &Path, peers: &[Peer]) -> anyhow::Result<Vec<Condit
                 }
             }
             if !rows.is_empty() {
-                let mut row = summarise(&condition, &rows);
-                row.label = format!("{}: sylva-rs scans, {}", peer.name, row.label);
-                out.push(row);
+                out.push(peer_summary(*peer, &condition, &rows, "sylva-rs scans, "));
             }
         }
     }

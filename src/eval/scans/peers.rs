@@ -8,25 +8,50 @@ use super::rows::{Condition, ConditionRow, TreeRow, cloud_stem, summarise};
 use crate::scan::Skeleton;
 use crate::tree::Tree;
 
-/// A peer skeletoniser: the key its answer files carry and its name.
+/// A peer skeletoniser: the key its answer files carry, its name, and
+/// whether it fits radii (pc-skeletor gives a graph of positions only).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Peer {
     pub key: &'static str,
     pub name: &'static str,
+    pub fits_radius: bool,
 }
 
-/// The peers `scripts/scan-peers` runs (GPL-3.0 tools, each in its own
-/// virtual environment, never linked).
-pub const PEERS: [Peer; 2] = [
+/// The peers `scripts/scan-peers` runs (each in its own virtual
+/// environment, never linked: two are GPL-3.0).
+pub const PEERS: [Peer; 3] = [
     Peer {
         key: "pytlidar",
         name: "PyTLidar 1.1.2",
+        fits_radius: true,
     },
     Peer {
         key: "sylva",
         name: "sylva-rs 0.3.0",
+        fits_radius: true,
+    },
+    Peer {
+        key: "pcskeletor",
+        name: "pc-skeletor 1.0.0",
+        fits_radius: false,
     },
 ];
+
+/// A peer's rows summarised under `condition`, labelled with its name
+/// and `what`; no radius error for a peer that fits none.
+pub(super) fn peer_summary(
+    peer: Peer,
+    condition: &Condition,
+    rows: &[TreeRow],
+    what: &str,
+) -> ConditionRow {
+    let mut row = summarise(condition, rows);
+    row.label = format!("{}: {what}{}", peer.name, row.label);
+    if !peer.fits_radius {
+        row.radius_error_mm = [f64::NAN; 3];
+    }
+    row
+}
 
 /// A peer's answer for one cloud (`STEM.KEY.json`).
 #[derive(Debug, serde::Deserialize)]
@@ -144,9 +169,5 @@ pub fn peer_row(
             rows.push(answer.row(&Skeleton::of_tree(tree)));
         }
     }
-    Ok((!rows.is_empty()).then(|| {
-        let mut row = summarise(condition, &rows);
-        row.label = format!("{}: {}", peer.name, row.label);
-        row
-    }))
+    Ok((!rows.is_empty()).then(|| peer_summary(peer, condition, &rows, "")))
 }

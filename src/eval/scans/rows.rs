@@ -154,7 +154,7 @@ pub fn to_markdown(rows: &[ConditionRow]) -> String {
     );
     for r in rows {
         s += &format!(
-            "| {} | {}{} | {:.0} | {:.3} / {:.3} | {:.3} / {:.3} | {:.2} / {:.2} / {:.2} | {:.2} | {:.2} | {:.3} / {:.3} | {:.2} |\n",
+            "| {} | {}{} | {:.0} | {:.3} / {:.3} | {:.3} / {:.3} | {} | {:.2} | {:.2} | {:.3} / {:.3} | {:.2} |\n",
             r.label,
             r.trees,
             if r.failed > 0 {
@@ -167,9 +167,14 @@ pub fn to_markdown(rows: &[ConditionRow]) -> String {
             r.recall[1],
             r.precision[0],
             r.precision[1],
-            r.radius_error_mm[0],
-            r.radius_error_mm[1],
-            r.radius_error_mm[2],
+            if r.radius_error_mm.iter().all(|e| e.is_nan()) {
+                "none fitted".to_owned()
+            } else {
+                format!(
+                    "{:.2} / {:.2} / {:.2}",
+                    r.radius_error_mm[0], r.radius_error_mm[1], r.radius_error_mm[2]
+                )
+            },
             r.branch_points_matched,
             r.topology,
             r.per_100k_p50,
