@@ -18,6 +18,11 @@ const PARENT_RANGE: (f64, f64) = (0.03, 0.12);
 const MIN_SEGMENT: f64 = 0.005;
 /// A fork moves at most this far (m).
 const MAX_MOVE: f64 = 0.08;
+/// Two forks this close (m) along the skeleton are one: where three arms,
+/// or two forks a few centimetres apart, leave a branch, the level sets
+/// part the arms one at a time, and neither find has arms and a parent
+/// long enough to fit on its own.
+const CLUSTER: f64 = 0.04;
 
 /// Moves the forks of `skeleton` and returns which nodes stay (the merged
 /// pieces between a moved fork and its old place do not).
@@ -26,18 +31,37 @@ pub fn relocate_forks(skeleton: &mut Skeleton) -> Vec<bool> {
     let children = skeleton.children();
     let mut keep = vec![true; n];
     for f in 0..n {
-        if children[f].len() < 2 || skeleton.parents[f].is_none() {
+        if children[f].len() < 2 || skeleton.parents[f].is_none() || !keep[f] {
             continue;
         }
         let pos = &skeleton.positions;
-        // Each arm's axis.
+        // Each arm's axis; a fork within `CLUSTER` up an arm is the same
+        // fork found twice, and its arms are this fork's.
         let mut lines: Vec<(Point3<f64>, Vector3<f64>)> = Vec::new();
-        for &c in &children[f] {
+        let mut absorbed: Vec<usize> = Vec::new();
+        // (where an arm starts, its first piece, whether it is an absorbed
+        // fork's arm)
+        let mut arms: Vec<(usize, usize, bool)> =
+            children[f].iter().map(|&c| (f, c, false)).collect();
+        let mut next = 0;
+        while next < arms.len() {
+            let (from, c, nested) = arms[next];
+            next += 1;
             let mut run = Vec::new();
-            let (mut at, mut arc, mut prev) = (c, 0.0, f);
+            let mut path = Vec::new();
+            let (mut at, mut arc, mut prev) = (c, 0.0, from);
             loop {
                 arc += (pos[at] - pos[prev]).norm();
                 if arc > ARM_RANGE.1 {
+                    break;
+                }
+                path.push(at);
+                if children[at].len() > 1 && !nested && arc <= CLUSTER {
+                    if path.iter().all(|&k| keep[k]) {
+                        absorbed.extend(&path);
+                        arms.extend(children[at].iter().map(|&g| (at, g, true)));
+                        run.clear();
+                    }
                     break;
                 }
                 if arc >= ARM_RANGE.0 {
@@ -108,6 +132,15 @@ pub fn relocate_forks(skeleton: &mut Skeleton) -> Vec<bool> {
         }
         skeleton.parents[f] = new_parent;
         skeleton.positions[f] = x;
+        // The second find of this fork goes: its arms hang from this one.
+        for &a in &absorbed {
+            keep[a] = false;
+            for &c in &children[a] {
+                if !absorbed.contains(&c) {
+                    skeleton.parents[c] = Some(f);
+                }
+            }
+        }
     }
     keep
 }
@@ -177,5 +210,60 @@ mod tests {
         assert!((skeleton.positions[fork] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6);
         assert!(!keep[16] && !keep[15] && keep[14]);
         assert_eq!(skeleton.parents[fork], Some(14));
+    }
+
+    /// Three arms leave a trunk at 0.3 m; the level sets parted one arm at
+    /// 0.32 m and the other two at 0.345 m. The two finds are one fork, at
+    /// the trunk's top, with all three arms.
+    #[test]
+    fn two_finds_of_one_fork_become_one_fork_where_the_axes_meet() {
+        let mut positions = Vec::new();
+        let mut parents = Vec::new();
+        for i in 0..=15usize {
+            positions.push(Point3::new(0.0, 0.0, i as f64 * 0.02));
+            parents.push(i.checked_sub(1));
+        }
+        let mut add = |p: Point3<f64>, parent: usize| {
+            positions.push(p);
+            parents.push(Some(parent));
+            positions.len() - 1
+        };
+        let first = add(Point3::new(0.0, 0.0, 0.32), 15);
+        let second = add(Point3::new(0.0, 0.0, 0.345), first);
+        let arm = |azimuth: f64, k: usize| {
+            let s = k as f64 * 0.01;
+            Point3::new(s * azimuth.cos(), s * azimuth.sin(), 0.3 + s)
+        };
+        let mut arm_nodes = Vec::new();
+        for (azimuth, from, start) in [(0.0, first, 3), (2.1, second, 5), (4.2, second, 5)] {
+            let mut prev = from;
+            for k in start..12 {
+                prev = add(arm(azimuth, k), prev);
+                if k == start {
+                    arm_nodes.push(prev);
+                }
+            }
+        }
+        let n = positions.len();
+        let mut skeleton = Skeleton {
+            positions,
+            parents,
+            radius: vec![0.01; n],
+        };
+        let keep = relocate_forks(&mut skeleton);
+        assert!(
+            (skeleton.positions[first] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6,
+            "{:?}",
+            skeleton.positions[first]
+        );
+        assert!(!keep[second] && !keep[15] && keep[first] && keep[14]);
+        assert_eq!(skeleton.parents[first], Some(14));
+        for a in arm_nodes {
+            assert_eq!(
+                skeleton.parents[a],
+                Some(first),
+                "every arm hangs from the one fork"
+            );
+        }
     }
 }
