@@ -176,16 +176,34 @@ fn nearest_to_lines(lines: &[(Point3<f64>, Vector3<f64>)]) -> Option<Point3<f64>
 mod tests {
     use super::*;
 
+    /// Pieces every 2 cm up the z axis to 0.3 m (nodes 0-15).
+    fn trunk() -> (Vec<Point3<f64>>, Vec<Option<usize>>) {
+        (0..=15usize)
+            .map(|i| (Point3::new(0.0, 0.0, i as f64 * 0.02), i.checked_sub(1)))
+            .unzip()
+    }
+
+    /// The skeleton through `positions` (every piece 1 cm thick) with its
+    /// forks relocated, and which nodes stay.
+    fn relocated(
+        positions: Vec<Point3<f64>>,
+        parents: Vec<Option<usize>>,
+    ) -> (Skeleton, Vec<bool>) {
+        let n = positions.len();
+        let mut skeleton = Skeleton {
+            positions,
+            parents,
+            radius: vec![0.01; n],
+        };
+        let keep = relocate_forks(&mut skeleton);
+        (skeleton, keep)
+    }
+
     #[test]
     fn a_fork_found_late_moves_back_to_where_the_axes_meet() {
         // A trunk up the z axis to 0.3 m, two arms at ±45° from there; the
         // level sets found the fork at 0.33 m with two merged pieces.
-        let mut positions = Vec::new();
-        let mut parents = Vec::new();
-        for i in 0..=15usize {
-            positions.push(Point3::new(0.0, 0.0, i as f64 * 0.02));
-            parents.push(i.checked_sub(1));
-        }
+        let (mut positions, mut parents) = trunk();
         positions.push(Point3::new(0.0, 0.0, 0.315));
         parents.push(Some(15));
         positions.push(Point3::new(0.0, 0.0, 0.33));
@@ -200,13 +218,7 @@ mod tests {
                 prev = positions.len() - 1;
             }
         }
-        let n = positions.len();
-        let mut skeleton = Skeleton {
-            positions,
-            parents,
-            radius: vec![0.01; n],
-        };
-        let keep = relocate_forks(&mut skeleton);
+        let (skeleton, keep) = relocated(positions, parents);
         assert!((skeleton.positions[fork] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6);
         assert!(!keep[16] && !keep[15] && keep[14]);
         assert_eq!(skeleton.parents[fork], Some(14));
@@ -217,12 +229,7 @@ mod tests {
     /// the trunk's top, with all three arms.
     #[test]
     fn two_finds_of_one_fork_become_one_fork_where_the_axes_meet() {
-        let mut positions = Vec::new();
-        let mut parents = Vec::new();
-        for i in 0..=15usize {
-            positions.push(Point3::new(0.0, 0.0, i as f64 * 0.02));
-            parents.push(i.checked_sub(1));
-        }
+        let (mut positions, mut parents) = trunk();
         let mut add = |p: Point3<f64>, parent: usize| {
             positions.push(p);
             parents.push(Some(parent));
@@ -244,13 +251,7 @@ mod tests {
                 }
             }
         }
-        let n = positions.len();
-        let mut skeleton = Skeleton {
-            positions,
-            parents,
-            radius: vec![0.01; n],
-        };
-        let keep = relocate_forks(&mut skeleton);
+        let (skeleton, keep) = relocated(positions, parents);
         assert!(
             (skeleton.positions[first] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6,
             "{:?}",
