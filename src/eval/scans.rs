@@ -12,10 +12,8 @@
 //! The extraction's parameters were chosen on other trees (seeds 1-8 of
 //! the generator, never a test-split seed), so every tree here is held out.
 
-use std::time::Instant;
-
 use crate::dataset::{CollectConfig, Split};
-use crate::scan::{ExtractParams, Extraction, ScanParams, Skeleton, extract, scan};
+use crate::scan::{Extraction, ScanParams, Skeleton, scan};
 use crate::seed::derive_seed;
 use crate::tree::collection::TreeShape;
 use crate::tree::collection::tree_set;
@@ -105,20 +103,9 @@ pub fn evaluate_condition(
         if !condition.colour {
             cloud.colors = None;
         }
-        let start = Instant::now();
-        let result = extract(&cloud, &ExtractParams::default());
-        let seconds = start.elapsed().as_secs_f64();
-        let row = TreeRow::new(
-            &Skeleton::of_tree(tree),
-            cloud.len(),
-            seconds,
-            result
-                .as_ref()
-                .map(|e| &e.skeleton)
-                .map_err(|e| e.to_string()),
-        );
+        let (row, extraction) = TreeRow::extracted(&Skeleton::of_tree(tree), &cloud);
         rows.push(row);
-        extractions.push(result.ok());
+        extractions.push(extraction);
     }
     (summarise(condition, &rows), extractions)
 }

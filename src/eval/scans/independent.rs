@@ -5,11 +5,10 @@
 //! the models' own cylinders by the same code as on our scans.
 
 use std::path::Path;
-use std::time::Instant;
 
-use super::peers::{Cylinders, Peer, cylinders_skeleton, peer_summary, read_answer};
+use super::peers::{Cylinders, Peer, cylinders_skeleton, peer_cases_row};
 use super::rows::{Condition, ConditionRow, TreeRow, summarise};
-use crate::scan::{ExtractParams, PointCloud, Skeleton, extract};
+use crate::scan::{PointCloud, Skeleton};
 
 /// The range noise σ (m) `scripts/scan-independent` scans with.
 pub const INDEPENDENT_NOISE: f64 = 0.002;
@@ -92,18 +91,7 @@ pub fn independent_rows(dir: &Path, peers: &[Peer]) -> anyhow::Result<Vec<Condit
         let ours: Vec<TreeRow> = these
             .iter()
             .map(|case| {
-                let start = Instant::now();
-                let result = extract(&case.cloud, &ExtractParams::default());
-                let seconds = start.elapsed().as_secs_f64();
-                let row = TreeRow::new(
-                    &case.truth,
-                    case.cloud.len(),
-                    seconds,
-                    result
-                        .as_ref()
-                        .map(|e| &e.skeleton)
-                        .map_err(|e| e.to_string()),
-                );
+                let (row, _) = TreeRow::extracted(&case.truth, &case.cloud);
                 eprintln!(
                     "  {}: {} points, recall {:.3}, precision {:.3} (1.0 r), radius {:.2} mm{}",
                     case.stem,
@@ -122,17 +110,15 @@ pub fn independent_rows(dir: &Path, peers: &[Peer]) -> anyhow::Result<Vec<Condit
         let mut row = summarise(&condition, &ours);
         row.label = format!("treemanip: sylva-rs scans, {}", row.label);
         out.push(row);
-        for peer in peers {
-            let mut rows = Vec::new();
-            for case in &these {
-                let path = dir.join(format!("{}.{}.json", case.stem, peer.key));
-                if let Some(answer) = read_answer(&path)? {
-                    rows.push(answer.row(&case.truth));
-                }
-            }
-            if !rows.is_empty() {
-                out.push(peer_summary(*peer, &condition, &rows, "sylva-rs scans, "));
-            }
+        for &peer in peers {
+            let cases = these.iter().map(|c| (c.stem.as_str(), &c.truth));
+            out.extend(peer_cases_row(
+                cases,
+                &condition,
+                dir,
+                peer,
+                "sylva-rs scans, ",
+            )?);
         }
     }
     Ok(out)

@@ -39,12 +39,7 @@ pub const PEERS: [Peer; 3] = [
 
 /// A peer's rows summarised under `condition`, labelled with its name
 /// and `what`; no radius error for a peer that fits none.
-pub(super) fn peer_summary(
-    peer: Peer,
-    condition: &Condition,
-    rows: &[TreeRow],
-    what: &str,
-) -> ConditionRow {
+fn peer_summary(peer: Peer, condition: &Condition, rows: &[TreeRow], what: &str) -> ConditionRow {
     let mut row = summarise(condition, rows);
     row.label = format!("{}: {what}{}", peer.name, row.label);
     if !peer.fits_radius {
@@ -178,7 +173,7 @@ fn split_at(
 
 /// A peer's answer as a skeleton: the cloud's size, the peer's time (s)
 /// and its skeleton or why there is none.
-pub(super) struct Answer {
+struct Answer {
     pub points: usize,
     pub seconds: f64,
     pub found: Result<Skeleton, String>,
@@ -198,7 +193,7 @@ impl Answer {
 
 /// A peer's answer file read and turned into a skeleton; `None` when
 /// there is no such file.
-pub(super) fn read_answer(path: &std::path::Path) -> anyhow::Result<Option<Answer>> {
+fn read_answer(path: &std::path::Path) -> anyhow::Result<Option<Answer>> {
     let Ok(text) = std::fs::read_to_string(path) else {
         return Ok(None);
     };
@@ -221,14 +216,37 @@ pub fn peer_row(
     dir: &std::path::Path,
     peer: Peer,
 ) -> anyhow::Result<Option<ConditionRow>> {
+    let cases: Vec<(String, Skeleton)> = trees
+        .iter()
+        .enumerate()
+        .map(|(i, tree)| (cloud_stem(condition, i), Skeleton::of_tree(tree)))
+        .collect();
+    peer_cases_row(
+        cases.iter().map(|(stem, truth)| (stem.as_str(), truth)),
+        condition,
+        dir,
+        peer,
+        "",
+    )
+}
+
+/// `peer`'s answers in `dir` for the clouds `cases` names (file stem and
+/// truth), scored and summarised under `condition` with `what` in the
+/// label; `None` when it answered none of them.
+pub(super) fn peer_cases_row<'a>(
+    cases: impl Iterator<Item = (&'a str, &'a Skeleton)>,
+    condition: &Condition,
+    dir: &std::path::Path,
+    peer: Peer,
+    what: &str,
+) -> anyhow::Result<Option<ConditionRow>> {
     let mut rows = Vec::new();
-    for (i, tree) in trees.iter().enumerate() {
-        let path = dir.join(format!("{}.{}.json", cloud_stem(condition, i), peer.key));
-        if let Some(answer) = read_answer(&path)? {
-            rows.push(answer.row(&Skeleton::of_tree(tree)));
+    for (stem, truth) in cases {
+        if let Some(answer) = read_answer(&dir.join(format!("{stem}.{}.json", peer.key)))? {
+            rows.push(answer.row(truth));
         }
     }
-    Ok((!rows.is_empty()).then(|| peer_summary(peer, condition, &rows, "")))
+    Ok((!rows.is_empty()).then(|| peer_summary(peer, condition, &rows, what)))
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 use serde::Serialize;
 
 use crate::eval::plan::percentile;
-use crate::scan::{ScanScore, Skeleton, score};
+use crate::scan::{ExtractParams, Extraction, PointCloud, ScanScore, Skeleton, extract, score};
 
 /// One scanning condition.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -56,6 +56,25 @@ pub struct TreeRow {
 }
 
 impl TreeRow {
+    /// Extracts the tree in `cloud` with the default parameters, timed,
+    /// and scores it against `truth`; the extraction comes back beside
+    /// the row.
+    pub fn extracted(truth: &Skeleton, cloud: &PointCloud) -> (Self, Option<Extraction>) {
+        let start = std::time::Instant::now();
+        let result = extract(cloud, &ExtractParams::default());
+        let seconds = start.elapsed().as_secs_f64();
+        let row = Self::new(
+            truth,
+            cloud.len(),
+            seconds,
+            result
+                .as_ref()
+                .map(|e| &e.skeleton)
+                .map_err(|e| e.to_string()),
+        );
+        (row, result.ok())
+    }
+
     /// `found` scored against the true geometry `truth`, or the failure
     /// `error`.
     pub fn new(
