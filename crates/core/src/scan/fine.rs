@@ -274,7 +274,11 @@ fn prune(mut pieces: Vec<Piece>, length: f64) -> (Vec<Piece>, usize) {
 /// Each branch's radii: the median of the fitted radii within two pieces
 /// either side; where none was fitted, the branch's median, else the
 /// parent branch's radius where it starts. A branch is never thicker than
-/// the one it grows from. Returns how many radii were not fitted.
+/// the one it grows from, except the branches from the root: the root is
+/// where the trunk meets the ground, and its piece is often one arc of the
+/// trunk's bottom ring (an occluded or uneven base parts the ring into
+/// arcs), whose small radius would cap the whole tree. Returns how many
+/// radii were not fitted.
 fn smooth_radii(skeleton: &mut Skeleton, fitted: &[Option<f64>]) -> usize {
     let (chains, _) = skeleton.chains();
     let n = skeleton.len();
@@ -283,7 +287,11 @@ fn smooth_radii(skeleton: &mut Skeleton, fitted: &[Option<f64>]) -> usize {
     let mut borrowed = 0;
     for chain in &chains {
         let nodes = &chain.nodes[1..];
-        let start_radius = radius[chain.nodes[0]];
+        let start_radius = if chain.nodes[0] == 0 {
+            f64::NAN
+        } else {
+            radius[chain.nodes[0]]
+        };
         let values: Vec<Option<f64>> = nodes.iter().map(|&k| fitted[k]).collect();
         let mut known: Vec<f64> = values.iter().flatten().copied().collect();
         known.sort_by(f64::total_cmp);
@@ -322,4 +330,65 @@ fn smooth_radii(skeleton: &mut Skeleton, fitted: &[Option<f64>]) -> usize {
     }
     skeleton.radius = radius;
     borrowed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A root with a short stub (an arc of the trunk's bottom ring, radius
+    /// 8 mm) and the trunk (50 mm), the stub listed `stub_first` or last,
+    /// and a twig forking from the trunk whose fit (60 mm) is thicker than
+    /// the trunk.
+    fn rooted(stub_first: bool) -> (Skeleton, Vec<Option<f64>>, [usize; 2]) {
+        let z = |h: f64| Point3::new(0.0, 0.0, h);
+        let (stub, trunk) = if stub_first { (1, 3) } else { (5, 1) };
+        let mut positions = vec![Point3::origin(); 8];
+        let mut parents = vec![None; 8];
+        let mut fitted = vec![Some(0.008); 8];
+        for (k, j) in (stub..stub + 2).enumerate() {
+            positions[j] = Point3::new(0.05, 0.0, 0.01 * (k + 1) as f64);
+            parents[j] = Some(if k == 0 { 0 } else { j - 1 });
+        }
+        for (k, j) in (trunk..trunk + 4).enumerate() {
+            positions[j] = z(0.02 * (k + 1) as f64);
+            parents[j] = Some(if k == 0 { 0 } else { j - 1 });
+            fitted[j] = Some(0.05);
+        }
+        positions[7] = Point3::new(0.1, 0.0, 0.1);
+        parents[7] = Some(trunk + 1);
+        fitted[7] = Some(0.06);
+        let skeleton = Skeleton {
+            positions,
+            parents,
+            radius: vec![0.0; 8],
+        };
+        (skeleton, fitted, [stub, trunk])
+    }
+
+    /// The conifers of sylva-rs's scans came out with a 10 mm trunk where
+    /// it is 56 mm: the root's piece was one arc of the bottom ring, and
+    /// its radius capped every branch. Branches from the root are not
+    /// capped; elsewhere a branch is still never thicker than its parent.
+    #[test]
+    fn a_small_arc_at_the_root_does_not_cap_the_trunk() {
+        for stub_first in [true, false] {
+            let (mut skeleton, fitted, [stub, trunk]) = rooted(stub_first);
+            assert_eq!(smooth_radii(&mut skeleton, &fitted), 0);
+            for j in trunk..trunk + 4 {
+                assert!(
+                    (skeleton.radius[j] - 0.05).abs() < 1e-12,
+                    "trunk {j}: {:?}",
+                    skeleton.radius
+                );
+            }
+            for j in stub..stub + 2 {
+                assert!((skeleton.radius[j] - 0.008).abs() < 1e-12);
+            }
+            assert!(
+                (skeleton.radius[7] - 0.05).abs() < 1e-12,
+                "the twig is capped by the trunk"
+            );
+        }
+    }
 }
