@@ -245,24 +245,19 @@ mod tests {
 
     /// A trunk forking into two arms at node 2.
     fn fork() -> Tree {
-        let positions = vec![
-            Point3::origin(),
-            Point3::new(0.0, 0.0, 0.4),
-            Point3::new(0.0, 0.0, 0.8),
-            Point3::new(0.3, 0.0, 1.1),
-            Point3::new(-0.3, 0.0, 1.1),
-        ];
-        let parents = vec![None, Some(0), Some(1), Some(2), Some(2)];
-        let wood = Wood::default();
-        let branches = (0..5)
-            .map(|j: usize| {
-                parents[j].map(|p: usize| {
-                    let r = if j >= 3 { 0.005 } else { 0.01 };
-                    wood.branch(r, (positions[j] - positions[p]).norm())
-                })
-            })
-            .collect();
-        Tree::new(positions, parents, branches).unwrap()
+        crate::scan::Skeleton {
+            positions: vec![
+                Point3::origin(),
+                Point3::new(0.0, 0.0, 0.4),
+                Point3::new(0.0, 0.0, 0.8),
+                Point3::new(0.3, 0.0, 1.1),
+                Point3::new(-0.3, 0.0, 1.1),
+            ],
+            parents: vec![None, Some(0), Some(1), Some(2), Some(2)],
+            radius: vec![0.0, 0.01, 0.01, 0.005, 0.005],
+        }
+        .to_tree(&Wood::default())
+        .unwrap()
     }
 
     /// A gripper closing at a fork holds the fork, never the tip of one of

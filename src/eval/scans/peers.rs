@@ -135,15 +135,15 @@ pub(super) fn cylinders_skeleton(c: &Cylinders) -> Option<Skeleton> {
     Some(s)
 }
 
-/// The node `t` along a placed cylinder whose nodes are `along`: an
-/// existing one within `REUSE` along it, else a new node at `at` spliced
-/// into the cylinder's chain (the part past it now hangs from it).
 /// A child starting within this (m) of a node along its parent hangs from
 /// that node: a skeletoniser's next cylinder starts near, not exactly at,
 /// its parent's end, and splitting there would leave millimetre stubs
 /// that count as branches.
 const REUSE: f64 = 0.01;
 
+/// The node `t` along a placed cylinder whose nodes are `along`: an
+/// existing one within `REUSE` along it, else a new node at `at` spliced
+/// into the cylinder's chain (the part past it now hangs from it).
 fn split_at(
     s: &mut Skeleton,
     along: &mut Vec<(f64, usize)>,
