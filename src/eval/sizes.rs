@@ -19,7 +19,7 @@ use serde::Serialize;
 
 use super::plan::percentile;
 use crate::dataset::{CollectConfig, Episode, SizeData, Split, collect_size};
-use crate::graph::path::{Encoding, encode_forward_path};
+use crate::graph::path::{Encoding, PathOutput, encode_forward_path};
 use crate::infer::batcher::JobControl;
 use crate::infer::models::{ServedModel, predict_displacements};
 use crate::sim::{SimConfig, simulate};
@@ -165,13 +165,13 @@ pub fn no_action_row(shape: TreeShape, data: &SizeData) -> SizeRow {
     })
 }
 
-/// The linearised push alone ([`crate::sim::linear`], placed as the path
-/// model places its answers): the path model's starting point.
+/// The linearised push alone ([`crate::sim::linear`]): the path model's
+/// starting point, what its all-zero answer places.
 pub fn linear_row(shape: TreeShape, data: &SizeData) -> SizeRow {
     baseline_row("Linearised", shape, data, |tree, e| {
         let graph =
             encode_forward_path(tree, e.push.node, &e.push.vector).expect("validated episode");
-        graph.positions(tree, &vec![0.0; 3 * graph.input.n])
+        graph.positions(PathOutput::Rotation, tree, &vec![0.0; 3 * graph.input.n])
     })
 }
 

@@ -73,7 +73,7 @@ impl ModelWeights {
     pub fn stem(&self) -> String {
         match self.encoding() {
             Encoding::Full => format!("{}_{}", self.task().name(), self.arch().name()),
-            Encoding::Path => format!("{}_path", self.task().name()),
+            Encoding::Path | Encoding::PathRotation => format!("{}_path", self.task().name()),
         }
     }
 
@@ -113,7 +113,10 @@ impl ModelWeights {
                 "gnn{}: {} graph2graph layers, hidden {}, edge attributes {}, {:?} connectivity",
                 match w.config.encoding {
                     Encoding::Full => "",
-                    Encoding::Path => " on the push's path and its side branches",
+                    Encoding::Path => " on the push's path and its side branches (Δp out)",
+                    Encoding::PathRotation => {
+                        " on the push's path and its side branches (branch turns out)"
+                    }
                 },
                 w.config.layers,
                 w.config.hidden,

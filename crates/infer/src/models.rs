@@ -174,7 +174,9 @@ fn canary(session: &mut OnnxModel, task: Task, encoding: Encoding) -> Result<(),
             let push = Vector3::new(0.0, 0.05, 0.0);
             match encoding {
                 Encoding::Full => encode_forward(&tree, 2, &push),
-                Encoding::Path => encode_forward_path(&tree, 2, &push).map(|g| g.input),
+                Encoding::Path | Encoding::PathRotation => {
+                    encode_forward_path(&tree, 2, &push).map(|g| g.input)
+                }
             }
         }
         Task::Policy => {
@@ -320,8 +322,8 @@ pub fn predict_displacements(
 ) -> Result<Vec<Vec<Vector3<f64>>>, InferError> {
     let _timer = InferenceTimer::start(model);
     let vector = |v: &[f32]| Vector3::new(v[0] as f64, v[1] as f64, v[2] as f64);
-    match model.card.encoding {
-        Encoding::Full => {
+    match model.card.encoding.path_output() {
+        None => {
             let graphs = actions
                 .iter()
                 .map(|(node, push)| encode_forward(tree, *node, push))
@@ -332,7 +334,7 @@ pub fn predict_displacements(
                 .map(|r| r.chunks_exact(3).map(vector).collect())
                 .collect())
         }
-        Encoding::Path => {
+        Some(output) => {
             let paths = actions
                 .iter()
                 .map(|(node, push)| encode_forward_path(tree, *node, push))
@@ -343,7 +345,7 @@ pub fn predict_displacements(
                 .iter()
                 .zip(&rows)
                 .map(|(path, r)| {
-                    path.positions(tree, r)
+                    path.positions(output, tree, r)
                         .iter()
                         .zip(tree.positions())
                         .map(|(a, b)| a - b)

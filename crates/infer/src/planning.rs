@@ -3,7 +3,7 @@
 //! [`treemanip_core::planner::Predictor`]).
 
 use nalgebra::Point3;
-use treemanip_core::graph::path::{Encoding, path_fits};
+use treemanip_core::graph::path::path_fits;
 use treemanip_core::planner::{Candidate, ContactPolicy, PredictError, Predictor};
 use treemanip_core::sim::Push;
 use treemanip_core::tree::Tree;
@@ -32,7 +32,7 @@ impl Predictor for ServedModel {
         tree: &Tree,
         pushes: &[Push],
     ) -> Result<Vec<Option<Vec<Point3<f64>>>>, PredictError> {
-        let readable = |p: &Push| self.card.encoding != Encoding::Path || path_fits(tree, p.node);
+        let readable = |p: &Push| !self.card.encoding.is_path() || path_fits(tree, p.node);
         let actions: Vec<_> = pushes
             .iter()
             .filter(|p| readable(p))

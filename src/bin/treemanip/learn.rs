@@ -113,9 +113,10 @@ pub struct TrainArgs {
     #[arg(long, value_enum, default_value = "full")]
     connectivity: ConnectivityArg,
     /// GNN forward model: `full` (the paper: the whole tree in, Δp per
-    /// node out) or `path` (the push's root-to-contact path in, its joints'
-    /// rotations out, every node placed by forward kinematics; no size
-    /// limit; exported as `forward_path`).
+    /// node out), `path_rotation` (the push's root-to-contact path in, each
+    /// path branch's turn out, every node placed by forward kinematics; no
+    /// size limit; exported as `forward_path`) or `path` (the same graph,
+    /// Δp per graph node out: the first path model's).
     #[arg(long, default_value = "full")]
     encoding: Encoding,
     /// GNN: start from this checkpoint directory's best weights
@@ -155,7 +156,7 @@ pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
     config.encoding = args.encoding;
     anyhow::ensure!(
         config.encoding == Encoding::Full || (task == Task::Forward && arch == Arch::Gnn),
-        "--encoding path is for the GNN forward model"
+        "--encoding path and path_rotation are for the GNN forward model"
     );
     config.connectivity = match args.connectivity {
         ConnectivityArg::Full => Connectivity::Full,
@@ -373,10 +374,10 @@ pub struct DomainArgs {
 fn domain_record(data: &Path, sizes: &[usize], encoding: Encoding) -> anyhow::Result<DomainRecord> {
     let span = training_span(data, sizes)?;
     let mut domain = span.domain(domain::Margin::STANDARD, domain::EVALUATED_NODES);
-    if encoding == Encoding::Path {
+    if encoding.is_path() {
         // No size limit: the model reads the path, whatever the tree.
         domain.nodes = (treemanip::tree::MIN_NODES, treemanip::tree::MAX_NODES);
-        domain.encoding = Encoding::Path;
+        domain.encoding = encoding;
     }
     Ok(DomainRecord {
         domain,

@@ -10,7 +10,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::dataset::{Episode, SizeData, Split, read_size_file};
-use crate::graph::path::{Encoding, encode_forward_path};
+use crate::graph::path::{Encoding, PathOutput, encode_forward_path};
 use crate::graph::stats::{Running, StatsBuilder};
 use crate::graph::{
     Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy, offsets, rotate_xy,
@@ -120,16 +120,33 @@ impl Examples {
                 encode_policy(tree, &episode.final_positions).expect(valid),
                 Vec::new(),
             ),
-            (Task::Forward, Encoding::Path) => {
+            (Task::Forward, encoding) if encoding.is_path() => {
+                let output = encoding.path_output().expect("a path encoding");
                 let graph = encode_forward_path(tree, node, push).expect(valid);
-                let rows = graph.displacement_targets(tree, &episode.final_positions);
+                let rows = graph.targets(output, tree, &episode.final_positions);
                 (graph.input, rows)
             }
-            (Task::Forward, Encoding::Full) => (
+            (Task::Forward, _) => (
                 encode_forward(tree, node, push).expect(valid),
                 offsets(&episode.final_positions, tree.positions()),
             ),
         }
+    }
+
+    /// A path model's error on example `id` (m): the largest over every
+    /// node of the tree when its answer `rows` (3 numbers per graph node,
+    /// padding after them ignored) is placed on it.
+    pub fn tree_error(&self, output: PathOutput, id: (usize, usize), rows: &[f32]) -> f64 {
+        let (data, episode) = self.episode(id);
+        let tree = data.tree_of(episode);
+        let graph = encode_forward_path(tree, episode.push.node, &episode.push.vector)
+            .expect("dataset episodes are validated when read");
+        graph
+            .positions(output, tree, &rows[..3 * graph.input.n])
+            .iter()
+            .zip(&episode.final_positions)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max)
     }
 
     /// A padded batch and its targets.

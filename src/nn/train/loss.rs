@@ -104,7 +104,21 @@ pub(super) fn validate<M: Net>(
             let logits = logits.as_deref();
             let (mut error_sum, mut correct) = (0.0, 0usize);
             for g in 0..batch.batch {
-                let (error, hit) = graph_score(task, &batch, &targets, &vectors, logits, &scale, g);
+                let (error, hit) = match examples.encoding.path_output() {
+                    // A path model's error is the whole tree's, as served:
+                    // its graph's rows placed on every node.
+                    Some(output) if task == Task::Forward => {
+                        let n = batch.n;
+                        let rows: Vec<f32> = (0..n * 3)
+                            .map(|k| {
+                                let c = k % 3;
+                                (vectors[g * n * 3 + k] as f64 * scale.1[c] + scale.0[c]) as f32
+                            })
+                            .collect();
+                        (examples.tree_error(output, ids[g], &rows), false)
+                    }
+                    _ => graph_score(task, &batch, &targets, &vectors, logits, &scale, g),
+                };
                 error_sum += error;
                 correct += usize::from(hit);
             }

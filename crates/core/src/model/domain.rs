@@ -218,7 +218,7 @@ impl Domain {
                 });
             }
         };
-        let path = self.encoding == Encoding::Path;
+        let path = self.encoding.is_path();
         if !path {
             check("tree_height", self.tree_height, tree_height(tree), None);
         }
@@ -255,7 +255,7 @@ impl Domain {
     /// path's mean (what the model reads) against the trained range. Empty
     /// for the paper's encoding.
     pub fn check_path(&self, tree: &Tree, node: usize) -> Vec<Violation> {
-        if self.encoding != Encoding::Path || node == 0 || node >= tree.len() {
+        if !self.encoding.is_path() || node == 0 || node >= tree.len() {
             return Vec::new();
         }
         if !path_fits(tree, node) {

@@ -219,8 +219,8 @@ impl PartialSchema for ModelCard {
             .property(
                 "encoding",
                 string_enum(
-                    &["full", "path"],
-                    Some("What graph the model reads: `full` (the paper's, every node, at most 64) or `path` (the push's path and side branches, any size)."),
+                    &treemanip_core::graph::path::Encoding::ALL.map(|e| e.name()),
+                    Some("What graph the model reads and what it answers: `full` (the paper's: every node, at most 64; Δp per node), `path_rotation` (the push's path and side branches, any size; each path branch's turn) or `path` (the same graph; Δp per graph node: the first path model's)."),
                 ),
             );
         card.into()

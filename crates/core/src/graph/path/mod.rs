@@ -19,24 +19,40 @@
 //! - node n_j = [c_j], global g = [T], and the output Δp_j per graph node,
 //!   exactly as for the paper's forward model.
 //!
-//! [`PathGraph::positions`] turns the predicted Δp into a rigid motion of
-//! the whole tree: each path branch's orientation is the rotation that best
-//! maps its own rest direction and its side branches' onto the predicted
-//! ones (Wahba's problem, by SVD), its length is kept, and every subtree off
-//! the path moves rigidly with the branch it hangs from. Rigid subtrees stay
-//! rigid by construction, and the cost is O(m² + N) instead of O(N²).
+//! What the model answers per graph node, and how it becomes the whole
+//! tree's motion ([`decode`]), depends on the encoding:
+//!
+//! - [`Encoding::PathRotation`] (the served `forward_path` model): each path
+//!   branch's rotation beyond the linearised push's, in the world frame;
+//!   forward kinematics places the path and carries every subtree off it
+//!   rigidly. An error in one branch's turn moves its subtree by the turn
+//!   times the subtree's reach, and nothing else.
+//! - [`Encoding::Path`] (the first path model, kept loadable): each graph
+//!   node's Δp beyond the linearised push's; each path branch's orientation
+//!   is the rotation that best maps its own rest direction and its side
+//!   branches' onto the predicted ones (Wahba's problem, by SVD). A branch
+//!   10 cm long turns by the *difference* of two predicted positions over
+//!   10 cm, and a 500-node tree hangs a metre of subtree from it: the same
+//!   Δp error costs three times the e_N it costs a 20-node tree.
+//!
+//! Either way rigid subtrees stay rigid by construction, and the cost is
+//! O(m² + N) instead of O(N²).
 
-use nalgebra::{Matrix3, Point3, Rotation3, Vector3};
+use nalgebra::{Point3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::{EncodeError, GraphInput, Task, edge_attributes_with};
 use crate::sim::linear::linear_rotations;
-use crate::sim::{ContactModel, Push, deformed_positions};
+use crate::sim::{ContactModel, Push};
 use crate::tree::Tree;
+use kinematics::graph_positions;
+
+pub mod decode;
+pub mod kinematics;
 
 /// What graph a model reads and what its 3-vector output means.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "snake_case")]
 pub enum Encoding {
     /// The paper's: every node of the tree, fully connected; the output is
     /// each node's displacement Δp (m). Costs O(N²); limited to
@@ -47,27 +63,61 @@ pub enum Encoding {
     /// output is each graph node's Δp beyond the linearised push, placed on
     /// the whole tree as path joint rotations. Any tree size; the graph
     /// itself has at most [`PATH_GRAPH_MAX_NODES`] nodes, side branches only
-    /// up to [`PATH_GRAPH_TRAINED_NODES`].
+    /// up to [`PATH_GRAPH_TRAINED_NODES`]. The first path model's; kept so
+    /// that its files still load and answer as they did.
     Path,
+    /// The same graph; the output is each path branch's rotation (rad,
+    /// world frame, a rotation vector) beyond the linearised push's, zero
+    /// for the root and the side nodes ([`PathGraph::rotation_targets`]).
+    PathRotation,
 }
 
 impl Encoding {
+    /// Every encoding, in the order the API lists them.
+    pub const ALL: [Encoding; 3] = [Encoding::Full, Encoding::PathRotation, Encoding::Path];
+
     pub fn name(self) -> &'static str {
         match self {
             Encoding::Full => "full",
             Encoding::Path => "path",
+            Encoding::PathRotation => "path_rotation",
         }
     }
+
+    /// What a path model's three numbers per graph node mean; `None` for
+    /// the paper's encoding, which reads the whole tree.
+    pub fn path_output(self) -> Option<PathOutput> {
+        match self {
+            Encoding::Full => None,
+            Encoding::Path => Some(PathOutput::Displacement),
+            Encoding::PathRotation => Some(PathOutput::Rotation),
+        }
+    }
+
+    /// Whether the model reads a push's path graph (any tree size) rather
+    /// than the whole tree.
+    pub fn is_path(self) -> bool {
+        self.path_output().is_some()
+    }
+}
+
+/// What a path model answers per graph node (3 numbers each), beyond the
+/// linearised push; [`decode`] places either on the whole tree.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PathOutput {
+    /// Δp (m) of every graph node ([`Encoding::Path`]).
+    Displacement,
+    /// Each path branch's turn (rad, world frame) ([`Encoding::PathRotation`]).
+    Rotation,
 }
 
 impl std::str::FromStr for Encoding {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "full" => Ok(Encoding::Full),
-            "path" => Ok(Encoding::Path),
-            other => Err(format!("unknown encoding {other:?} (full or path)")),
-        }
+        Encoding::ALL
+            .into_iter()
+            .find(|e| e.name() == s)
+            .ok_or_else(|| format!("unknown encoding {s:?} (full, path_rotation or path)"))
     }
 }
 
@@ -85,6 +135,10 @@ pub struct PathGraph {
     /// The linearised push's Δp of each graph node (m, 3 per node,
     /// [`crate::sim::linear`]): the model learns what the push does beyond it.
     pub prior: Vec<f32>,
+    /// The linearised push's rotation of each graph node's joint (rad, the
+    /// convention of [`crate::sim::deformed_positions`]; zero for the root
+    /// and the side nodes): where a rotation model's answer starts.
+    pub prior_rotations: Vec<Vector3<f64>>,
     pub input: GraphInput,
 }
 
@@ -235,11 +289,21 @@ pub fn encode_forward_path(
             [d.x as f32, d.y as f32, d.z as f32]
         })
         .collect();
+    let prior_rotations = (0..m)
+        .map(|k| match k {
+            k if k > 0 && k < path_len => linear
+                .iter()
+                .find(|(j, _)| *j == nodes[k])
+                .map_or_else(Vector3::zeros, |(_, t)| *t),
+            _ => Vector3::zeros(),
+        })
+        .collect();
     Ok(PathGraph {
         nodes,
         path_len,
         hangs_from,
         prior,
+        prior_rotations,
         input: GraphInput {
             task: Task::Forward,
             n: m,
@@ -250,135 +314,10 @@ pub fn encode_forward_path(
     })
 }
 
-impl PathGraph {
-    /// What a path model learns: each graph node's Δp (m) beyond the
-    /// linearised push's, from the simulated final positions of the tree.
-    pub fn displacement_targets(&self, tree: &Tree, final_positions: &[Point3<f64>]) -> Vec<f32> {
-        self.nodes
-            .iter()
-            .enumerate()
-            .flat_map(|(k, &j)| {
-                let d = final_positions[j] - tree.position(j);
-                let p = &self.prior[3 * k..3 * k + 3];
-                [d.x as f32 - p[0], d.y as f32 - p[1], d.z as f32 - p[2]]
-            })
-            .collect()
-    }
-
-    /// Final positions of every tree node from a model's Δp per graph node
-    /// beyond the linearised push's (`rows`: 3 numbers per graph node; all
-    /// zero gives the linearised push itself): each path branch turned by the
-    /// rotation that best fits its predicted direction and its side
-    /// branches' (see the module documentation), everything else rigid.
-    pub fn positions(&self, tree: &Tree, rows: &[f32]) -> Vec<Point3<f64>> {
-        let predicted = |k: usize| {
-            let (r, p) = (&rows[3 * k..3 * k + 3], &self.prior[3 * k..3 * k + 3]);
-            tree.position(self.nodes[k])
-                + Vector3::new(
-                    (r[0] + p[0]) as f64,
-                    (r[1] + p[1]) as f64,
-                    (r[2] + p[2]) as f64,
-                )
-        };
-        let mut thetas = Vec::with_capacity(self.path_len);
-        let mut parent = Rotation3::identity();
-        let mut placed = tree.position(0);
-        for k in 1..self.path_len {
-            let (a, before) = (self.nodes[k], self.nodes[k - 1]);
-            let rest = tree.position(a) - tree.position(before);
-            let mut pairs = vec![(rest, predicted(k) - placed, 1.0)];
-            // Side branches are weighted as the path branch: all rigid.
-            for (s, _) in self.hangs_from.iter().enumerate().filter(|(_, h)| **h == k) {
-                let g = self.path_len + s;
-                let side = tree.position(self.nodes[g]) - tree.position(a);
-                pairs.push((side, predicted(g) - predicted(k), 1.0));
-            }
-            let orientation = best_rotation(&pairs).unwrap_or_else(|| {
-                // One direction (or collinear ones) fixes all but the twist:
-                // the least turn from where the parent branch carries it.
-                let carried = parent * rest;
-                Rotation3::rotation_between(&carried, &pairs[0].1)
-                    .unwrap_or_else(Rotation3::identity)
-                    * parent
-            });
-            thetas.push((a, (parent.inverse() * orientation).scaled_axis()));
-            placed += orientation * rest;
-            parent = orientation;
-        }
-        positions_from_rotations(tree, &thetas)
-    }
-}
-
-/// The rotation R minimising Σ w |R x̂ − ŷ|² over unit directions (Wahba's
-/// problem), by the SVD of Σ w ŷ x̂ᵀ with the determinant fixed to +1;
-/// `None` when the directions are (nearly) collinear and leave the turn
-/// about them free.
-fn best_rotation(pairs: &[(Vector3<f64>, Vector3<f64>, f64)]) -> Option<Rotation3<f64>> {
-    let mut b = Matrix3::zeros();
-    for (x, y, w) in pairs {
-        let (nx, ny) = (x.norm(), y.norm());
-        if nx > 1e-12 && ny > 1e-12 {
-            b += (y / ny) * (x / nx).transpose() * *w;
-        }
-    }
-    let svd = b.svd(true, true);
-    let mut values = svd.singular_values;
-    values.as_mut_slice().sort_by(|a, b| b.total_cmp(a));
-    // No usable pair at all (every direction of zero length) leaves B zero,
-    // which the ratio below would not catch.
-    if values[0] < 1e-12 || values[1] < 1e-3 * values[0] {
-        return None;
-    }
-    let (u, v_t) = (svd.u?, svd.v_t?);
-    let d = (u * v_t).determinant().signum();
-    let fixed = u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * v_t;
-    Some(Rotation3::from_matrix_unchecked(fixed))
-}
-
-/// Where the graph's nodes go when the path joints `(node, θ)` turn: the
-/// path by forward kinematics along it, each side node rigidly with the
-/// branch ending at its path node. O(path), where placing the whole tree
-/// ([`positions_from_rotations`]) is O(N).
-fn graph_positions(
-    tree: &Tree,
-    nodes: &[usize],
-    path_len: usize,
-    hangs_from: &[usize],
-    thetas: &[(usize, Vector3<f64>)],
-) -> Vec<Point3<f64>> {
-    let mut orientation = vec![Rotation3::identity(); path_len];
-    let mut placed = Vec::with_capacity(nodes.len());
-    placed.push(tree.position(nodes[0]));
-    for k in 1..path_len {
-        let theta = thetas
-            .iter()
-            .find(|(j, _)| *j == nodes[k])
-            .map_or_else(Vector3::zeros, |(_, t)| *t);
-        orientation[k] = orientation[k - 1] * Rotation3::new(theta);
-        let rest = tree.position(nodes[k]) - tree.position(nodes[k - 1]);
-        placed.push(placed[k - 1] + orientation[k] * rest);
-    }
-    for (s, &k) in hangs_from.iter().enumerate() {
-        let rest = tree.position(nodes[path_len + s]) - tree.position(nodes[k]);
-        placed.push(placed[k] + orientation[k] * rest);
-    }
-    placed
-}
-
-/// Every node's position when the joints `(node, θ)` turn (the joint at
-/// each node's parent; all others at rest).
-pub fn positions_from_rotations(tree: &Tree, thetas: &[(usize, Vector3<f64>)]) -> Vec<Point3<f64>> {
-    let mut all = vec![Vector3::zeros(); tree.len()];
-    for (j, t) in thetas {
-        all[*j] = *t;
-    }
-    deformed_positions(tree, &all)
-}
-
 #[cfg(test)]
 mod tests {
+    use super::kinematics::positions_from_rotations;
     use super::*;
-    use crate::sim::{SimConfig, simulate};
     use crate::tree::{OrchardParams, generate_orchard};
 
     /// A comb: a 20-joint spine with two twigs at every spine node. Its
@@ -425,13 +364,22 @@ mod tests {
         // and one of the next.
         assert_eq!(graph.hangs_from.len(), PATH_GRAPH_TRAINED_NODES - 21);
         assert_eq!(graph.hangs_from.iter().min(), Some(&19));
-        let placed = graph.positions(&tree, &vec![0.0; 3 * graph.input.n]);
+        let placed = graph.positions(
+            PathOutput::Displacement,
+            &tree,
+            &vec![0.0; 3 * graph.input.n],
+        );
         assert_eq!(placed.len(), tree.len());
         // A path longer than the side branches' limit stays whole, alone.
         let long = comb(40);
         let graph = encode_forward_path(&long, 3 * 40 - 2, &(Vector3::x() * 0.05)).unwrap();
         assert_eq!((graph.input.n, graph.path_len), (41, 41));
-        assert_eq!(graph.positions(&long, &vec![0.0; 3 * 41]).len(), long.len());
+        assert_eq!(
+            graph
+                .positions(PathOutput::Rotation, &long, &vec![0.0; 3 * 41])
+                .len(),
+            long.len()
+        );
         let deep = comb(70);
         assert_eq!(
             encode_forward_path(&deep, 3 * 70 - 2, &Vector3::x()),
@@ -441,21 +389,6 @@ mod tests {
                 max: PATH_GRAPH_MAX_NODES - 1
             })
         );
-    }
-
-    /// One direction, or none usable, leaves the turn about it free: no
-    /// rotation is claimed; two apart fix it.
-    #[test]
-    fn a_rotation_is_fitted_only_where_two_directions_fix_it() {
-        let (x, y) = (Vector3::new(0.0, 0.0, 0.1), Vector3::new(0.01, 0.0, 0.1));
-        assert!(best_rotation(&[(x, y, 1.0)]).is_none());
-        assert!(best_rotation(&[(x, Vector3::zeros(), 1.0)]).is_none());
-        assert!(best_rotation(&[]).is_none());
-        let turn = Rotation3::new(Vector3::new(0.1, -0.2, 0.3));
-        let side = Vector3::new(0.08, 0.0, 0.05);
-        let fitted = best_rotation(&[(x, turn * x, 1.0), (side, turn * side, 1.0)]).unwrap();
-        let off = (fitted.matrix() - turn.matrix()).norm();
-        assert!(off < 1e-7, "{off}");
     }
 
     /// The prior placed on the graph's nodes alone is the whole tree's
@@ -489,61 +422,5 @@ mod tests {
                 "the push moves the graph"
             );
         }
-    }
-
-    #[test]
-    fn simulated_displacements_through_the_path_graph_give_the_simulated_tree() {
-        let tree = generate_orchard(300, 5, &OrchardParams::default()).unwrap();
-        let contacts: Vec<usize> = (1..tree.len())
-            .filter(|&j| !tree.is_leaf(j) && tree.depth(j) >= 4)
-            .step_by(7)
-            .collect();
-        let mut checked = 0;
-        for contact in contacts {
-            let dir = tree.branch_direction(contact).unwrap();
-            let push = dir.cross(&Vector3::z()).normalize() * 0.08;
-            let Ok(outcome) = simulate(
-                &tree,
-                &Push {
-                    node: contact,
-                    vector: push,
-                },
-                &SimConfig::default(),
-            ) else {
-                continue;
-            };
-            let graph = encode_forward_path(&tree, contact, &push).unwrap();
-            assert_eq!(graph.path_len, tree.depth(contact) + 1);
-            let rows = graph.displacement_targets(&tree, &outcome.final_positions);
-            let placed = graph.positions(&tree, &rows);
-            let mut errors: Vec<f64> = placed
-                .iter()
-                .zip(&outcome.final_positions)
-                .map(|(a, b)| (a - b).norm())
-                .collect();
-            errors.sort_by(f64::total_cmp);
-            let (median, worst) = (errors[errors.len() / 2], errors[errors.len() - 1]);
-            // f32 displacements: micrometres, where every side branch is in
-            // the graph (where the only side node found is nearly in line
-            // with its path branch, the twist about them comes from the
-            // parent's least turn: a fraction of a millimetre). Where some
-            // are cut (a graph at the limit), a path branch none of the kept
-            // ones shows is turned the least from its parent branch, so the
-            // subtrees off it miss their twist: up to 4 mm here.
-            if graph.input.n < PATH_GRAPH_TRAINED_NODES {
-                assert!(median < 1e-6, "contact {contact}: median {median}");
-                assert!(worst < 5e-4, "contact {contact}: {worst}");
-            } else {
-                assert!(median < 1e-3, "contact {contact}: median {median}");
-                assert!(worst < 5e-3, "contact {contact}: {worst}");
-            }
-            // κ is relative to the path: it sums to zero along it.
-            let kappa: f32 = (1..graph.path_len)
-                .map(|i| graph.input.edge(i - 1, i)[5])
-                .sum();
-            assert!(kappa.abs() < 1e-4, "path κ sums to {kappa}");
-            checked += 1;
-        }
-        assert!(checked >= 10, "{checked} pushes checked");
     }
 }
