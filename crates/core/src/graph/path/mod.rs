@@ -158,19 +158,20 @@ pub const PATH_GRAPH_MAX_NODES: usize = crate::tree::FULL_GRAPH_MAX_NODES;
 /// with every side branch. Graphs kept within the bulk of what training saw
 /// err less and cost the square of their size. Held-out orchard trees
 /// (`eval sizes`, 96 pushes per size, the same weights), e_N (cm) at
-/// N = 100 / 200 / 500 for this limit:
+/// N = 100 / 200 / 500 for this limit, the served turn-answering model
+/// (`encoding: path_rotation`) and, in brackets, the first Δp model's:
 ///
 /// | limit | seed 1001 | seed 2002 |
 /// | --- | --- | --- |
-/// | 16 | 5.39 / 6.79 / 6.73 | 6.24 / 6.09 / 8.10 |
-/// | 20 | 5.29 / 6.49 / 7.06 | 6.13 / 5.95 / 8.66 |
-/// | **24** | 5.28 / 6.50 / 7.08 | 6.18 / 5.92 / 8.37 |
-/// | 32 | 5.31 / 6.67 / 7.29 | 6.18 / 6.11 / 8.55 |
-/// | 64 | – / – / 7.59 | – / 6.11 / 8.70 |
+/// | 16 | 2.97 / 3.68 / 4.42 (5.39 / 6.79 / 6.73) | 3.41 / 3.42 / 5.09 (6.24 / 6.09 / 8.10) |
+/// | 20 | (5.29 / 6.49 / 7.06) | (6.13 / 5.95 / 8.66) |
+/// | **24** | 2.99 / 3.55 / 4.39 (5.28 / 6.50 / 7.08) | 3.36 / 3.34 / 5.01 (6.18 / 5.92 / 8.37) |
+/// | 32 | 2.99 / 3.58 / 4.46 (5.31 / 6.67 / 7.29) | 3.36 / 3.36 / 5.08 (6.18 / 6.11 / 8.55) |
+/// | 64 | 2.99 / 3.58 / 4.94 (– / – / 7.59) | 3.36 / 3.36 / 5.17 (– / 6.11 / 8.70) |
 ///
-/// 24 is at or below 32 everywhere and, for the 64 deepest pushes of a
-/// 500-node tree, 24-31 nodes a graph instead of 32: 75 against 100 ms of
-/// inference on 2 cores (AMD EPYC).
+/// 24 is at or below 32 everywhere for both models and, for the 64 deepest
+/// pushes of a 500-node tree, 24-31 nodes a graph instead of 32: 75 against
+/// 100 ms of inference on 2 cores (AMD EPYC).
 pub const PATH_GRAPH_TRAINED_NODES: usize = 24;
 
 /// Most joints from the root to a contact that one path graph holds (its
