@@ -465,6 +465,16 @@ fn the_default_search_budget_follows_the_graphs_size_and_bounds_predictions() {
     assert_eq!(q.evaluations(), default_evaluations(20, false));
     q.stance = Stance::Region(treemanip::eval::plan::evaluation_region());
     assert_eq!(q.evaluations(), default_evaluations(20, true));
+    // Above 64 nodes `physics` searches twice as wide as `model` (one path
+    // solve costs about one path graph's pass).
+    let large = treemanip::tree::generate_orchard(200, 3, &Default::default()).unwrap();
+    let mut big = query(&large, large.positions(), Strategy::Physics, true);
+    assert_eq!(
+        big.evaluations(),
+        treemanip::planner::PHYSICS_LARGE_TREE_FACTOR * default_evaluations(200, true)
+    );
+    big.strategy = Strategy::Model;
+    assert_eq!(big.evaluations(), default_evaluations(200, true));
     // An explicit budget bounds the search; the fallback to the policy's
     // own pushes adds at most FALLBACK_PREDICTIONS.
     let set = models();

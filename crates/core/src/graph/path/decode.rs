@@ -177,9 +177,9 @@ fn best_rotation(pairs: &[(Vector3<f64>, Vector3<f64>, f64)]) -> Option<Rotation
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::graph::path::kinematics::linearised_tree;
     use crate::graph::path::{PATH_GRAPH_TRAINED_NODES, encode_forward_path};
-    use crate::sim::linear::linear_rotations;
-    use crate::sim::{ContactModel, Push, SimConfig, simulate};
+    use crate::sim::{Push, SimConfig, simulate};
     use crate::tree::{OrchardParams, generate_orchard};
 
     /// One direction, or none usable, leaves the turn about it free: no
@@ -268,15 +268,7 @@ mod tests {
         let push = Vector3::new(0.05, -0.04, 0.02);
         let graph = encode_forward_path(&tree, contact, &push).unwrap();
         let zeros = vec![0.0; 3 * graph.input.n];
-        let thetas = linear_rotations(
-            &tree,
-            &Push {
-                node: contact,
-                vector: push,
-            },
-            ContactModel::Slot,
-        );
-        let linear = positions_from_rotations(&tree, &thetas);
+        let linear = linearised_tree(&tree, contact, &push);
         let turned = graph.positions(PathOutput::Rotation, &tree, &zeros);
         for (a, b) in linear.iter().zip(&turned) {
             assert!((a - b).norm() < 1e-9);

@@ -47,3 +47,20 @@ pub fn positions_from_rotations(tree: &Tree, thetas: &[(usize, Vector3<f64>)]) -
     }
     deformed_positions(tree, &all)
 }
+
+/// The whole tree under the linearised push of `push` (m) at `contact`
+/// (slot contact): what a path model's all-zero answer should place.
+#[cfg(test)]
+pub(super) fn linearised_tree(
+    tree: &Tree,
+    contact: usize,
+    push: &Vector3<f64>,
+) -> Vec<Point3<f64>> {
+    use crate::sim::linear::linear_rotations;
+    use crate::sim::{ContactModel, Push};
+    let push = Push {
+        node: contact,
+        vector: *push,
+    };
+    positions_from_rotations(tree, &linear_rotations(tree, &push, ContactModel::Slot))
+}

@@ -317,7 +317,7 @@ pub fn encode_forward_path(
 
 #[cfg(test)]
 mod tests {
-    use super::kinematics::positions_from_rotations;
+    use super::kinematics::linearised_tree;
     use super::*;
     use crate::tree::{OrchardParams, generate_orchard};
 
@@ -400,15 +400,7 @@ mod tests {
         for contact in (5..tree.len()).step_by(17) {
             let push = Vector3::new(0.06, -0.03, 0.02);
             let graph = encode_forward_path(&tree, contact, &push).unwrap();
-            let thetas = linear_rotations(
-                &tree,
-                &Push {
-                    node: contact,
-                    vector: push,
-                },
-                ContactModel::Slot,
-            );
-            let all = positions_from_rotations(&tree, &thetas);
+            let all = linearised_tree(&tree, contact, &push);
             for (k, &j) in graph.nodes.iter().enumerate() {
                 let d = all[j] - tree.position(j);
                 for a in 0..3 {
