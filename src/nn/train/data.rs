@@ -115,18 +115,17 @@ impl Examples {
         let tree = data.tree_of(episode);
         let (node, push) = (episode.push.node, &episode.push.vector);
         let valid = "dataset episodes are validated when read";
-        match (task, self.encoding) {
+        match (task, self.encoding.path_output()) {
             (Task::Policy, _) => (
                 encode_policy(tree, &episode.final_positions).expect(valid),
                 Vec::new(),
             ),
-            (Task::Forward, encoding) if encoding.is_path() => {
-                let output = encoding.path_output().expect("a path encoding");
+            (Task::Forward, Some(output)) => {
                 let graph = encode_forward_path(tree, node, push).expect(valid);
                 let rows = graph.targets(output, tree, &episode.final_positions);
                 (graph.input, rows)
             }
-            (Task::Forward, _) => (
+            (Task::Forward, None) => (
                 encode_forward(tree, node, push).expect(valid),
                 offsets(&episode.final_positions, tree.positions()),
             ),

@@ -103,19 +103,17 @@ pub(super) fn validate<M: Net>(
                 loss(task, out, &batch, &targets, &scale, &device).into_scalar::<f32>() as f64;
             let logits = logits.as_deref();
             let (mut error_sum, mut correct) = (0.0, 0usize);
-            for g in 0..batch.batch {
+            // One graph of the batch per example id, in order.
+            for (g, &id) in ids.iter().enumerate() {
                 let (error, hit) = match examples.encoding.path_output() {
                     // A path model's error is the whole tree's, as served:
                     // its graph's rows placed on every node.
                     Some(output) if task == Task::Forward => {
                         let n = batch.n;
-                        let rows: Vec<f32> = (0..n * 3)
-                            .map(|k| {
-                                let c = k % 3;
-                                (vectors[g * n * 3 + k] as f64 * scale.1[c] + scale.0[c]) as f32
-                            })
+                        let rows: Vec<f32> = (g * n * 3..(g + 1) * n * 3)
+                            .map(|i| denormalised(&vectors, &scale, i) as f32)
                             .collect();
-                        (examples.tree_error(output, ids[g], &rows), false)
+                        (examples.tree_error(output, id, &rows), false)
                     }
                     _ => graph_score(task, &batch, &targets, &vectors, logits, &scale, g),
                 };
@@ -141,6 +139,14 @@ pub(super) fn validate<M: Net>(
     )
 }
 
+/// Output value `i` of a batch's flat 3-per-node output in metres (or
+/// radians): the model's normalised value times its coordinate's standard
+/// deviation plus its mean (`scale`: means, deviations).
+fn denormalised(vectors: &[f32], scale: &([f64; 3], [f64; 3]), i: usize) -> f64 {
+    let c = i % 3;
+    vectors[i] as f64 * scale.1[c] + scale.0[c]
+}
+
 /// Graph `g`'s validation error (m) and, for the policy, whether its
 /// arg-max affordance is the contacted node: the forward model's largest
 /// node error, the policy's action error at the contacted node.
@@ -154,7 +160,7 @@ fn graph_score(
     g: usize,
 ) -> (f64, bool) {
     let n = batch.n;
-    let denorm = |k: usize, c: usize| vectors[k * 3 + c] as f64 * scale.1[c] + scale.0[c];
+    let denorm = |k: usize, c: usize| denormalised(vectors, scale, k * 3 + c);
     match task {
         Task::Forward => {
             let mut worst = 0.0f64;

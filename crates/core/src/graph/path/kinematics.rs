@@ -8,26 +8,23 @@ use nalgebra::{Point3, Rotation3, Vector3};
 use crate::sim::deformed_positions;
 use crate::tree::Tree;
 
-/// Where the graph's nodes go when the path joints `(node, θ)` turn: the
-/// path by forward kinematics along it, each side node rigidly with the
-/// branch ending at its path node. O(path), where placing the whole tree
+/// Where the graph's nodes go when path node k's joint turns by
+/// `rotations[k]` (k < `path_len`; the root's is ignored): the path by
+/// forward kinematics along it, each side node rigidly with the branch
+/// ending at its path node. O(path), where placing the whole tree
 /// ([`positions_from_rotations`]) is O(N).
 pub(super) fn graph_positions(
     tree: &Tree,
     nodes: &[usize],
     path_len: usize,
     hangs_from: &[usize],
-    thetas: &[(usize, Vector3<f64>)],
+    rotations: &[Vector3<f64>],
 ) -> Vec<Point3<f64>> {
     let mut orientation = vec![Rotation3::identity(); path_len];
     let mut placed = Vec::with_capacity(nodes.len());
     placed.push(tree.position(nodes[0]));
     for k in 1..path_len {
-        let theta = thetas
-            .iter()
-            .find(|(j, _)| *j == nodes[k])
-            .map_or_else(Vector3::zeros, |(_, t)| *t);
-        orientation[k] = orientation[k - 1] * Rotation3::new(theta);
+        orientation[k] = orientation[k - 1] * Rotation3::new(rotations[k]);
         let rest = tree.position(nodes[k]) - tree.position(nodes[k - 1]);
         placed.push(placed[k - 1] + orientation[k] * rest);
     }

@@ -282,21 +282,21 @@ pub fn encode_forward_path(
         },
         ContactModel::Slot,
     );
-    let prior = graph_positions(tree, &nodes, path_len, &hangs_from, &linear)
-        .iter()
-        .zip(&nodes)
-        .flat_map(|(placed, &j)| {
-            let d = placed - tree.position(j);
-            [d.x as f32, d.y as f32, d.z as f32]
-        })
-        .collect();
-    let prior_rotations = (0..m)
+    let prior_rotations: Vec<Vector3<f64>> = (0..m)
         .map(|k| match k {
             k if k > 0 && k < path_len => linear
                 .iter()
                 .find(|(j, _)| *j == nodes[k])
                 .map_or_else(Vector3::zeros, |(_, t)| *t),
             _ => Vector3::zeros(),
+        })
+        .collect();
+    let prior = graph_positions(tree, &nodes, path_len, &hangs_from, &prior_rotations)
+        .iter()
+        .zip(&nodes)
+        .flat_map(|(placed, &j)| {
+            let d = placed - tree.position(j);
+            [d.x as f32, d.y as f32, d.z as f32]
         })
         .collect();
     Ok(PathGraph {
