@@ -271,6 +271,10 @@ fn prune(mut pieces: Vec<Piece>, length: f64) -> (Vec<Piece>, usize) {
     }
 }
 
+/// Radius (m) of a node nothing gives one: no fit on its branch and no
+/// parent branch to borrow from.
+const UNSEEN_RADIUS: f64 = 0.005;
+
 /// Each branch's radii: the median of the fitted radii within two pieces
 /// either side; where none was fitted, the branch's median, else the
 /// parent branch's radius where it starts. A branch is never thicker than
@@ -287,11 +291,12 @@ fn smooth_radii(skeleton: &mut Skeleton, fitted: &[Option<f64>]) -> usize {
     let mut borrowed = 0;
     for chain in &chains {
         let nodes = &chain.nodes[1..];
-        let start_radius = if chain.nodes[0] == 0 {
-            f64::NAN
-        } else {
-            radius[chain.nodes[0]]
-        };
+        // The parent branch's radius where the chain starts: none for a
+        // branch from the root (see above) or a parent not yet given one.
+        let start_radius = Some(chain.nodes[0])
+            .filter(|&s| s != 0)
+            .map(|s| radius[s])
+            .filter(|r| !r.is_nan());
         let values: Vec<Option<f64>> = nodes.iter().map(|&k| fitted[k]).collect();
         let mut known: Vec<f64> = values.iter().flatten().copied().collect();
         known.sort_by(f64::total_cmp);
@@ -305,27 +310,21 @@ fn smooth_radii(skeleton: &mut Skeleton, fitted: &[Option<f64>]) -> usize {
                 Some(&r) => r,
                 None => {
                     borrowed += 1;
-                    chain_median
-                        .or((!start_radius.is_nan()).then_some(start_radius))
-                        .unwrap_or(0.005)
+                    chain_median.or(start_radius).unwrap_or(UNSEEN_RADIUS)
                 }
             };
-            radius[k] = if start_radius.is_nan() {
-                r
-            } else {
-                r.min(start_radius)
-            };
+            radius[k] = start_radius.map_or(r, |s| r.min(s));
         }
         if chain.nodes[0] == 0 && radius[0].is_nan() {
             radius[0] = fitted[0].unwrap_or(radius[nodes[0]]);
         }
     }
     if radius[0].is_nan() {
-        radius[0] = fitted[0].unwrap_or(0.005);
+        radius[0] = fitted[0].unwrap_or(UNSEEN_RADIUS);
     }
     for r in &mut radius {
         if r.is_nan() {
-            *r = 0.005;
+            *r = UNSEEN_RADIUS;
         }
     }
     skeleton.radius = radius;
