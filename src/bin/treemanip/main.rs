@@ -58,6 +58,11 @@ enum Command {
     /// Write trained checkpoints as ONNX models with metadata.
     Export(learn::ExportArgs),
     #[cfg(feature = "train")]
+    /// Train the scan's foliage classifier (leaves told from bark by shape,
+    /// for clouds without colours) on synthetic scans; writes
+    /// models/foliage.json, which the library embeds.
+    TrainFoliage(learn::TrainFoliageArgs),
+    #[cfg(feature = "train")]
     /// Record (or refresh) each model's domain in its metadata, computed from
     /// its training split; the weights are left as they are.
     Domain(learn::DomainArgs),
@@ -129,6 +134,8 @@ fn main() -> std::process::ExitCode {
         Command::Train(args) => learn::train_cmd(args),
         #[cfg(feature = "train")]
         Command::Export(args) => learn::export_cmd(args),
+        #[cfg(feature = "train")]
+        Command::TrainFoliage(args) => learn::train_foliage_cmd(args),
         #[cfg(feature = "train")]
         Command::Domain(args) => learn::domain_cmd(args),
         #[cfg(feature = "train")]

@@ -104,6 +104,10 @@ pub struct FromPointsArgs {
     /// Largest cloud read (points).
     #[arg(long, default_value_t = treemanip::scan::extract::DEFAULT_MAX_POINTS)]
     max_points: usize,
+    /// How leaves are found: `auto` (by colour when the file has colours,
+    /// else by shape when the cloud looks leafy), `shape` or `off`.
+    #[arg(long, default_value = "auto")]
+    foliage: String,
 }
 
 pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
@@ -116,6 +120,11 @@ pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
         up: args.up,
         spacing: Some(args.spacing),
         crop: args.crop,
+        foliage: Some(
+            serde_json::from_value(serde_json::Value::String(args.foliage.clone())).map_err(
+                |_| anyhow::anyhow!("--foliage must be auto, shape or off, not {}", args.foliage),
+            )?,
+        ),
     };
     let params = ExtractParams {
         max_points: args.max_points,

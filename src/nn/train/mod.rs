@@ -30,6 +30,7 @@ pub mod checkpoint;
 pub mod data;
 mod device;
 pub mod finetune;
+pub mod foliage;
 mod loss;
 mod memory;
 pub mod modules;

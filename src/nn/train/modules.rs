@@ -75,7 +75,7 @@ pub struct TrainMlp {
 }
 
 impl TrainMlp {
-    fn new(mlp: &Mlp, device: &Device) -> Self {
+    pub(crate) fn new(mlp: &Mlp, device: &Device) -> Self {
         Self {
             first: to_burn(&mlp.layers[0], device),
             second: to_burn(&mlp.layers[1], device),
@@ -83,7 +83,7 @@ impl TrainMlp {
         }
     }
 
-    fn weights(&self) -> Mlp {
+    pub(crate) fn weights(&self) -> Mlp {
         Mlp {
             layers: [
                 from_burn(&self.first),
@@ -93,7 +93,7 @@ impl TrainMlp {
         }
     }
 
-    fn forward<const D: usize>(&self, x: Tensor<D>) -> Tensor<D> {
+    pub(crate) fn forward<const D: usize>(&self, x: Tensor<D>) -> Tensor<D> {
         self.tail(apply(&self.first, x))
     }
 

@@ -18,6 +18,7 @@ pub mod circle_fit;
 pub mod cloud;
 pub mod extract;
 pub mod fine;
+pub mod foliage;
 pub mod forks;
 pub mod io;
 pub mod levels;
@@ -29,7 +30,7 @@ pub mod skeleton;
 pub mod voxel;
 
 pub use cloud::{CloudError, CropBox, PointCloud};
-pub use extract::{Dropped, ExtractParams, Extraction, extract};
+pub use extract::{Dropped, ExtractParams, Extraction, FoliageFilter, extract};
 pub use scanner::{Origin, Scan, ScanParams, scan};
 pub use score::{ScanScore, score};
 pub use skeleton::Skeleton;

@@ -10,12 +10,15 @@ use nalgebra::{Point3, Vector3};
 pub struct Voxels {
     pub centres: Vec<Point3<f64>>,
     pub counts: Vec<usize>,
+    /// Each input point's cube (an index into `centres`).
+    pub of_point: Vec<usize>,
 }
 
 pub fn voxelize(points: &[Point3<f64>], voxel: f64) -> Voxels {
     let mut slot: HashMap<[i64; 3], usize> = HashMap::with_capacity(points.len() / 4);
     let mut sums: Vec<Vector3<f64>> = Vec::new();
     let mut counts = Vec::new();
+    let mut of_point = Vec::with_capacity(points.len());
     for p in points {
         let key = [
             (p.x / voxel).floor() as i64,
@@ -29,6 +32,7 @@ pub fn voxelize(points: &[Point3<f64>], voxel: f64) -> Voxels {
         });
         sums[k] += p.coords;
         counts[k] += 1;
+        of_point.push(k);
     }
     Voxels {
         centres: sums
@@ -37,6 +41,7 @@ pub fn voxelize(points: &[Point3<f64>], voxel: f64) -> Voxels {
             .map(|(s, &c)| Point3::from(s / c as f64))
             .collect(),
         counts,
+        of_point,
     }
 }
 
@@ -53,6 +58,7 @@ mod tests {
         ];
         let v = voxelize(&points, 0.004);
         assert_eq!(v.counts, vec![2, 1]);
+        assert_eq!(v.of_point, vec![0, 0, 1]);
         assert!((v.centres[0] - Point3::new(0.002, 0.001, 0.001)).norm() < 1e-12);
     }
 }

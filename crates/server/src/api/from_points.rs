@@ -135,12 +135,15 @@ impl FromPointsRequest {
                     .collect::<Result<Vec<_>, _>>()
             })
             .transpose()?;
-        let params = params(
-            self.root.as_deref(),
-            self.up.as_deref(),
-            self.spacing,
-            self.crop,
-        )?;
+        let params = ExtractParams {
+            foliage: self.foliage.unwrap_or_default().into(),
+            ..params(
+                self.root.as_deref(),
+                self.up.as_deref(),
+                self.spacing,
+                self.crop,
+            )?
+        };
         Ok((
             PointCloud {
                 points,
@@ -221,7 +224,10 @@ impl FromPointsQuery {
                 })
             })
             .transpose()?;
-        params(root.as_deref(), up.as_deref(), self.spacing, crop)
+        Ok(ExtractParams {
+            foliage: self.foliage.unwrap_or_default().into(),
+            ..params(root.as_deref(), up.as_deref(), self.spacing, crop)?
+        })
     }
 }
 

@@ -199,3 +199,77 @@ fn bad_clouds_are_named() {
         "`root` must be 3",
     );
 }
+
+/// A leafy cloud without colours loses its leaves by shape by default
+/// (counted under `foliage`, said in a warning); `"foliage": "off"` (JSON)
+/// and `foliage=off` (query) keep them; an unknown mode is named.
+#[test]
+fn leaves_go_by_shape_unless_foliage_is_off() {
+    let server = Server::start(&[]);
+    let tree = generate(18, 8, &ScaParams::default()).unwrap();
+    let cloud = scan(
+        &tree,
+        &ScanParams {
+            leaves_per_twig: 8,
+            noise: 0.003,
+            samples_per_view: 20_000,
+            seed: 8,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap()
+    .cloud;
+    let cloud = PointCloud::new(cloud.points);
+    let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let (status, auto) = server.json(
+        "POST",
+        "/v1/trees/from-points",
+        &json!({ "points": points }),
+    );
+    assert_eq!(status, 200, "{auto}");
+    let dropped = auto["points_dropped"]["foliage"].as_u64().unwrap() as usize;
+    assert!(dropped > cloud.len() / 5, "{dropped} of {}", cloud.len());
+    assert!(
+        auto["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("look like leaves")),
+        "{}",
+        auto["warnings"]
+    );
+    let (status, off) = server.json(
+        "POST",
+        "/v1/trees/from-points",
+        &json!({ "points": points, "foliage": "off" }),
+    );
+    assert_eq!(status, 200, "{off}");
+    assert_eq!(off["points_dropped"]["foliage"], 0);
+    let (status, off_query) = server.send(
+        "POST",
+        "/v1/trees/from-points?foliage=off",
+        "application/x-ply",
+        &ply_bytes(&cloud),
+    );
+    assert_eq!(status, 200, "{off_query}");
+    assert_eq!(off_query["points_dropped"]["foliage"], 0);
+    let truth = Skeleton::of_tree(&tree);
+    let (a, b) = (
+        score(&truth, &skeleton_of(&auto)),
+        score(&truth, &skeleton_of(&off)),
+    );
+    assert!(a.precision[1] > b.precision[1], "{a:?} {b:?}");
+    let (status, bad) = server.json(
+        "POST",
+        "/v1/trees/from-points",
+        &json!({ "points": points, "foliage": "maybe" }),
+    );
+    assert!(status == 400 || status == 422, "{status} {bad}");
+    assert!(
+        bad["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("expected one of `auto`, `shape`, `off`"),
+        "{bad}"
+    );
+}

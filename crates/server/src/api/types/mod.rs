@@ -44,7 +44,9 @@ pub use predict::{ForwardRequest, ForwardResponse, PolicyRequest, PolicyResponse
 pub use robots::{
     BaseRegionJson, JointLimitsJson, RobotJson, RobotJsonInfo, RobotsResponse, ToolFrameJson,
 };
-pub use scan::{CropJson, DroppedJson, FromPointsQuery, FromPointsRequest, FromPointsResponse};
+pub use scan::{
+    CropJson, DroppedJson, FoliageJson, FromPointsQuery, FromPointsRequest, FromPointsResponse,
+};
 pub use scene::{
     BaseJson, LinkJson, LinkPosesRequest, LinkPosesResponse, TreeResponse, UrdfRequest,
 };

@@ -40,6 +40,32 @@ pub struct FromPointsRequest {
     /// Only points inside this box are used (m).
     #[serde(default)]
     pub crop: Option<CropJson>,
+    /// How leaves are found and dropped (default `auto`).
+    #[serde(default)]
+    pub foliage: Option<FoliageJson>,
+}
+
+/// How leaves are found: `auto`, by colour when `colors` are sent, else by
+/// shape when the shape classifier finds the cloud leafy (a fifth of its
+/// points or more look like leaves); `shape`, by shape without colours
+/// whatever the share; `off`, every point is kept.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum FoliageJson {
+    #[default]
+    Auto,
+    Shape,
+    Off,
+}
+
+impl From<FoliageJson> for treemanip_core::scan::FoliageFilter {
+    fn from(f: FoliageJson) -> Self {
+        match f {
+            FoliageJson::Auto => Self::Auto,
+            FoliageJson::Shape => Self::Shape,
+            FoliageJson::Off => Self::Off,
+        }
+    }
 }
 
 /// The options of a PLY body, as query parameters: vectors as
@@ -58,6 +84,8 @@ pub struct FromPointsQuery {
     pub spacing: Option<f64>,
     /// Only points in this box (m): `min_x,min_y,min_z,max_x,max_y,max_z`.
     pub crop: Option<String>,
+    /// How leaves are found: `auto` (default), `shape` or `off`.
+    pub foliage: Option<FoliageJson>,
 }
 
 /// An axis-aligned box (m).
@@ -80,8 +108,9 @@ pub struct DroppedJson {
     pub fragments: usize,
     /// Points outside the crop box.
     pub outside_crop: usize,
-    /// Points whose colour is foliage green (excess green over 0.15; only
-    /// when `colors` are sent).
+    /// Points dropped as leaves: by colour (foliage green, excess green
+    /// over 0.15) when `colors` are sent, else by shape when the cloud is
+    /// leafy (see `foliage` in the request).
     pub foliage: usize,
 }
 

@@ -1,0 +1,187 @@
+//! The extraction's tests: leaves by colour and by shape, parts bridged.
+
+use super::*;
+use crate::scan::scanner::{Origin, ScanParams, scan};
+use crate::scan::score::score;
+use crate::tree::{ScaParams, generate};
+
+#[test]
+fn colours_drop_the_leaves_and_the_tree_comes_back() {
+    let tree = generate(18, 12, &ScaParams::default()).unwrap();
+    let params = ScanParams {
+        leaves_per_twig: 8,
+        samples_per_view: 20_000,
+        seed: 12,
+        ..ScanParams::default()
+    };
+    let scanned = scan(&tree, &params).unwrap();
+    let leaves = scanned
+        .origins
+        .iter()
+        .filter(|o| **o == Origin::Leaf)
+        .count();
+    let bark = scanned.cloud.len() - leaves;
+    let with = extract(&scanned.cloud, &ExtractParams::default()).unwrap();
+    // Every leaf point is green, no bark point is.
+    assert!(
+        with.dropped.foliage > leaves * 95 / 100,
+        "{:?} of {leaves}",
+        with.dropped
+    );
+    assert!(with.dropped.foliage <= leaves + bark / 1000);
+    let without = extract(
+        &PointCloud::new(scanned.cloud.points.clone()),
+        &ExtractParams {
+            foliage: FoliageFilter::Off,
+            ..ExtractParams::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(without.dropped.foliage, 0);
+    let truth = Skeleton::of_tree(&tree);
+    let (a, b) = (
+        score(&truth, &with.skeleton),
+        score(&truth, &without.skeleton),
+    );
+    assert!(
+        a.precision[1] > 0.9 && a.precision[1] > b.precision[1],
+        "{a:?} {b:?}"
+    );
+}
+
+/// A fork seen apart from its trunk (a band of leaves hides 4 cm of the
+/// trunk) is not elongated, but it is a subtree: it is bridged, not
+/// dropped as a fragment.
+#[test]
+fn a_fork_seen_apart_from_its_trunk_is_bridged() {
+    use crate::tree::Branch;
+    let branch = |radius: f64, length: f64| {
+        Some(Branch {
+            radius,
+            length,
+            stiffness: 10.0,
+            damping: 1.0,
+        })
+    };
+    let arm = (0.2f64 * 0.2 + 0.2 * 0.2).sqrt();
+    let tree = crate::tree::Tree::new(
+        vec![
+            Point3::origin(),
+            Point3::new(0.0, 0.0, 0.6),
+            Point3::new(0.2, 0.0, 0.8),
+            Point3::new(-0.2, 0.0, 0.8),
+        ],
+        vec![None, Some(0), Some(1), Some(1)],
+        vec![
+            None,
+            branch(0.02, 0.6),
+            branch(0.01, arm),
+            branch(0.01, arm),
+        ],
+    )
+    .unwrap();
+    let scanned = scan(
+        &tree,
+        &ScanParams {
+            viewpoints: 3,
+            noise: 0.001,
+            samples_per_view: 30_000,
+            seed: 3,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    let hidden = |p: &Point3<f64>| (0.46..0.50).contains(&p.z);
+    let points: Vec<_> = scanned
+        .cloud
+        .points
+        .iter()
+        .copied()
+        .filter(|p| !hidden(p))
+        .collect();
+    let found = extract(&PointCloud::new(points), &ExtractParams::default()).unwrap();
+    // The fork holds about a third of the points; none is a fragment.
+    assert_eq!(found.dropped.fragments, 0, "{:?}", found.dropped);
+    let top = found
+        .skeleton
+        .positions
+        .iter()
+        .map(|p| p.z)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(top > 0.75, "the skeleton stops at {top} m");
+    let s = score(&Skeleton::of_tree(&tree), &found.skeleton);
+    assert!(s.recall[1] > 0.9, "{s:?}");
+    assert!(found.warnings.iter().any(|w| w.contains("bridged")));
+}
+
+/// Without colours, a leafy cloud loses its leaves by shape (counted
+/// as foliage, said in a warning) and the tree comes back more
+/// precisely; a bare cloud keeps every point; `Off` keeps the leaves.
+#[test]
+fn without_colours_leaves_go_by_shape_and_bare_bark_stays() {
+    let tree = generate(22, 31, &ScaParams::default()).unwrap();
+    let leafy = scan(
+        &tree,
+        &ScanParams {
+            leaves_per_twig: 8,
+            noise: 0.003,
+            seed: 9,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    let leaves = leafy.origins.iter().filter(|o| **o == Origin::Leaf).count();
+    let cloud = PointCloud::new(leafy.cloud.points.clone());
+    let truth = Skeleton::of_tree(&tree);
+    let by_shape = extract(&cloud, &ExtractParams::default()).unwrap();
+    assert!(
+        by_shape.dropped.foliage > leaves * 7 / 10,
+        "{:?} of {leaves}",
+        by_shape.dropped
+    );
+    assert!(
+        by_shape
+            .warnings
+            .iter()
+            .any(|w| w.contains("look like leaves"))
+    );
+    let kept = extract(
+        &cloud,
+        &ExtractParams {
+            foliage: FoliageFilter::Off,
+            ..ExtractParams::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(kept.dropped.foliage, 0);
+    let (a, b) = (
+        score(&truth, &by_shape.skeleton),
+        score(&truth, &kept.skeleton),
+    );
+    assert!(a.precision[1] > b.precision[1] + 0.05, "{a:?} {b:?}");
+
+    let bare = scan(
+        &tree,
+        &ScanParams {
+            seed: 9,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    let found = extract(
+        &PointCloud::new(bare.cloud.points),
+        &ExtractParams::default(),
+    )
+    .unwrap();
+    assert_eq!(found.dropped.foliage, 0, "{:?}", found.dropped);
+    assert!(!found.warnings.iter().any(|w| w.contains("leaves")));
+}
+
+#[test]
+fn excess_green_tells_leaves_from_bark_and_fruit() {
+    assert!(is_foliage([74, 122, 46]));
+    assert!(is_foliage([40, 70, 25]));
+    assert!(!is_foliage([92, 68, 48]));
+    assert!(!is_foliage([168, 42, 36]));
+    assert!(!is_foliage([5, 20, 3]), "too dark to tell");
+}
