@@ -24,7 +24,7 @@ use super::modules::TrainMlp;
 use crate::dataset::Split;
 use crate::model::mlp::Mlp;
 use crate::scan::foliage::{
-    FEATURES, Features, FoliageCard, FoliageClassifier, Grids, call_foliage, features,
+    FEATURES, Features, FoliageCard, FoliageClassifier, Grids, call_foliage, features_of,
 };
 use crate::scan::{Origin, ScanParams, scan};
 use crate::seed::derive_seed;
@@ -123,17 +123,17 @@ pub fn examples(config: &FoliageConfig) -> anyhow::Result<(Vec<Features>, Vec<f3
             for (&v, o) in voxels.of_point.iter().zip(&scanned.origins) {
                 leaf[v] += usize::from(*o == Origin::Leaf);
             }
-            let f = features(&grids, &nalgebra::Vector3::z());
-            let mut ids: Vec<usize> = (0..f.len()).collect();
+            let mut ids: Vec<usize> = (0..voxels.centres.len()).collect();
             ids.shuffle(&mut rng);
-            for &v in ids.iter().take(config.per_scan) {
-                xs.push(f[v]);
-                ys.push(if 2 * leaf[v] > voxels.counts[v] {
+            ids.truncate(config.per_scan);
+            xs.extend(features_of(&grids, &nalgebra::Vector3::z(), &ids));
+            ys.extend(ids.iter().map(|&v| {
+                if 2 * leaf[v] > voxels.counts[v] {
                     1.0
                 } else {
                     0.0
-                });
-            }
+                }
+            }));
         }
     }
     Ok((xs, ys))

@@ -139,10 +139,15 @@ pub fn features(grids: &Grids, up: &Vector3<f64>) -> Vec<Features> {
     features_of(grids, up, &all)
 }
 
-/// [`features`] of the fine cubes `ids`: the fine scales around the cube,
-/// the coarse scales around its coarse cube.
-fn features_of(grids: &Grids, up: &Vector3<f64>, ids: &[usize]) -> Vec<Features> {
-    let coarse: Vec<[f32; COARSE_FEATURES]> = grids
+/// [`features`] of the fine cubes `ids` only.
+pub fn features_of(grids: &Grids, up: &Vector3<f64>, ids: &[usize]) -> Vec<Features> {
+    fine_features(grids, &coarse_features(grids, up), up, ids)
+}
+
+/// The coarse scales' features of every coarse cube: computed once and
+/// shared by the fine cubes in it.
+fn coarse_features(grids: &Grids, up: &Vector3<f64>) -> Vec<[f32; COARSE_FEATURES]> {
+    grids
         .coarse
         .centres
         .par_iter()
@@ -155,7 +160,17 @@ fn features_of(grids: &Grids, up: &Vector3<f64>, ids: &[usize]) -> Vec<Features>
             scales(&grids.coarse, &all, c, &COARSE_SCALES, up, &mut f);
             f
         })
-        .collect();
+        .collect()
+}
+
+/// The features of the fine cubes `ids`: the fine scales around the cube,
+/// then `coarse`'s features of its coarse cube.
+fn fine_features(
+    grids: &Grids,
+    coarse: &[[f32; COARSE_FEATURES]],
+    up: &Vector3<f64>,
+    ids: &[usize],
+) -> Vec<Features> {
     ids.par_iter()
         .map(|&v| {
             let c = &grids.fine.centres[v];
@@ -181,8 +196,8 @@ pub struct FoliageCard {
     pub data: String,
     /// Cubes trained on.
     pub examples: usize,
-    /// On the test split's leafy scans (cubes): share of leaf cubes called
-    /// foliage, and of bark cubes.
+    /// On the test split's leafy one-view scans (3 mm): the share of leaf
+    /// points called foliage, and of bark points.
     pub held_out_leaf_found: f64,
     pub held_out_bark_lost: f64,
 }
@@ -270,10 +285,14 @@ pub fn call_foliage(
 ) -> Option<FoliageCall> {
     let grids = Grids::new(points);
     let voxels = &grids.fine;
+    let coarse = coarse_features(&grids, up);
     if let Some(min) = min_share {
         let survey: Vec<usize> = (0..voxels.centres.len()).step_by(SURVEY_STRIDE).collect();
         let (mut leaf, mut all) = (0usize, 0usize);
-        for (f, &v) in features_of(&grids, up, &survey).iter().zip(&survey) {
+        for (f, &v) in fine_features(&grids, &coarse, up, &survey)
+            .iter()
+            .zip(&survey)
+        {
             all += voxels.counts[v];
             if classifier.chance(f) > THRESHOLD {
                 leaf += voxels.counts[v];
@@ -283,7 +302,8 @@ pub fn call_foliage(
             return None;
         }
     }
-    let chances: Vec<f64> = features(&grids, up)
+    let all: Vec<usize> = (0..voxels.centres.len()).collect();
+    let chances: Vec<f64> = fine_features(&grids, &coarse, up, &all)
         .par_iter()
         .map(|f| classifier.chance(f))
         .collect();

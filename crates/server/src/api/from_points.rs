@@ -13,7 +13,8 @@ use super::json::{media_type, parse_json, read_body};
 use super::validate::vector3;
 use crate::api::types::error::PostErrors;
 use crate::api::types::{
-    CropJson, DroppedJson, FromPointsQuery, FromPointsRequest, FromPointsResponse, TreeJson,
+    CropJson, DroppedJson, FoliageJson, FromPointsQuery, FromPointsRequest, FromPointsResponse,
+    TreeJson,
 };
 use treemanip_core::scan::io::FormatError;
 use treemanip_core::scan::{CloudError, CropBox, ExtractParams, Extraction, PointCloud, extract};
@@ -135,15 +136,13 @@ impl FromPointsRequest {
                     .collect::<Result<Vec<_>, _>>()
             })
             .transpose()?;
-        let params = ExtractParams {
-            foliage: self.foliage.unwrap_or_default().into(),
-            ..params(
-                self.root.as_deref(),
-                self.up.as_deref(),
-                self.spacing,
-                self.crop,
-            )?
-        };
+        let params = params(
+            self.root.as_deref(),
+            self.up.as_deref(),
+            self.spacing,
+            self.crop,
+            self.foliage,
+        )?;
         Ok((
             PointCloud {
                 points,
@@ -161,6 +160,7 @@ fn params(
     up: Option<&[f64]>,
     spacing: Option<f64>,
     crop: Option<CropJson>,
+    foliage: Option<FoliageJson>,
 ) -> Result<ExtractParams, ApiError> {
     let defaults = ExtractParams::default();
     Ok(ExtractParams {
@@ -176,6 +176,7 @@ fn params(
             min: Point3::from(c.min),
             max: Point3::from(c.max),
         }),
+        foliage: foliage.unwrap_or_default().into(),
         ..defaults
     })
 }
@@ -224,10 +225,13 @@ impl FromPointsQuery {
                 })
             })
             .transpose()?;
-        Ok(ExtractParams {
-            foliage: self.foliage.unwrap_or_default().into(),
-            ..params(root.as_deref(), up.as_deref(), self.spacing, crop)?
-        })
+        params(
+            root.as_deref(),
+            up.as_deref(),
+            self.spacing,
+            crop,
+            self.foliage,
+        )
     }
 }
 

@@ -1,8 +1,9 @@
 //! A tree from a point cloud: the parameters, what comes back, and the
 //! steps in order.
 //!
-//! 1. Check the cloud, crop it, drop foliage-green points when it has
-//!    colours, refuse planes and lines.
+//! 1. Check the cloud, crop it, drop leaves (foliage-green points when it
+//!    has colours; without, by shape when it looks leafy:
+//!    [`crate::scan::foliage`]), refuse planes and lines.
 //! 2. Average the points in cubes of `voxel` (the work then follows the
 //!    bark's area, not the scanner's point count).
 //! 3. Join each cube to its neighbours within a few cubes
@@ -10,8 +11,9 @@
 //! 4. Find the tree: the connected part holding `root`, or the tallest
 //!    large part; bridge gaps to other parts (an occluded stretch of
 //!    branch) only when the part is shaped like a branch or larger than a
-//!    leaf and the gap is at most `max_gap`; what stays apart is a fragment. A second large
-//!    part standing on the ground is a second tree: refused.
+//!    leaf and the gap is at most `max_gap` (at least [`LEAFY_MAX_GAP`]
+//!    once leaves went by shape); what stays apart is a fragment. A second
+//!    large part standing on the ground is a second tree: refused.
 //! 5. Level sets of the geodesic distance from the trunk's base give the
 //!    fine skeleton ([`crate::scan::levels`]), pruned of stubs shorter than
 //!    a leaf; each piece's centre and radius come from a circle fitted
@@ -137,7 +139,8 @@ pub struct Dropped {
     /// a branch, or too far from it).
     pub fragments: usize,
     pub outside_crop: usize,
-    /// Points whose colour is foliage green (only when colours are given).
+    /// Points dropped as leaves: by colour when colours are given, else by
+    /// shape when the cloud is leafy.
     pub foliage: usize,
 }
 
@@ -492,13 +495,13 @@ fn bridges(
     // or fruit (a fork or a whole subtree seen apart from the tree behind
     // leaves is not elongated): a leaf or a fruit seen apart from its twig
     // is neither.
-    let elongated = |l: usize| {
+    let branch_like = |l: usize| {
         let pts: Vec<Point3<f64>> = of_part[l].iter().map(|&i| points[i]).collect();
         let spread = principal(&pts).spread;
         spread[0] >= ELONGATION * spread[1] || spread[0] >= SUBTREE_SPREAD
     };
     let big: Vec<usize> = (0..parts)
-        .filter(|&l| !of_part[l].is_empty() && (l == main || elongated(l)))
+        .filter(|&l| !of_part[l].is_empty() && (l == main || branch_like(l)))
         .collect();
     if big.len() < 2 || max_gap <= 0.0 {
         return Vec::new();
