@@ -453,11 +453,19 @@ fn the_default_search_budget_follows_the_graphs_size_and_bounds_predictions() {
         }
     }
     // Above the fully connected models' 64 nodes a prediction reads a path
-    // graph of at most 24 nodes (or simulates one path): the budget of a
-    // 24-node graph, whatever the tree's size, not the 16 its N² would give.
+    // graph of at most 24 nodes (or simulates one path): twice the budget
+    // of a 24-node graph, whatever the tree's size, not the 16 its N² would
+    // give.
+    let factor = treemanip::planner::LARGE_TREE_SEARCH_FACTOR;
     for n in [65, 200, 512] {
-        assert_eq!(default_evaluations(n, true), 48 * 30 * 29 / (24 * 23));
-        assert_eq!(default_evaluations(n, false), 60 * 15 * 14 / (24 * 23));
+        assert_eq!(
+            default_evaluations(n, true),
+            factor * (48 * 30 * 29 / (24 * 23))
+        );
+        assert_eq!(
+            default_evaluations(n, false),
+            factor * (60 * 15 * 14 / (24 * 23))
+        );
         assert!(default_evaluations(n, true) > default_evaluations(64, true));
     }
     let (tree, targets) = episode(20, 5);
@@ -465,16 +473,13 @@ fn the_default_search_budget_follows_the_graphs_size_and_bounds_predictions() {
     assert_eq!(q.evaluations(), default_evaluations(20, false));
     q.stance = Stance::Region(treemanip::eval::plan::evaluation_region());
     assert_eq!(q.evaluations(), default_evaluations(20, true));
-    // Above 64 nodes `physics` searches twice as wide as `model` (one path
-    // solve costs about one path graph's pass).
+    // Above 64 nodes both strategies get the large-tree budget (a path
+    // graph's pass and one path's solve cost about the same).
     let large = treemanip::tree::generate_orchard(200, 3, &Default::default()).unwrap();
-    let mut big = query(&large, large.positions(), Strategy::Physics, true);
-    assert_eq!(
-        big.evaluations(),
-        treemanip::planner::PHYSICS_LARGE_TREE_FACTOR * default_evaluations(200, true)
-    );
-    big.strategy = Strategy::Model;
-    assert_eq!(big.evaluations(), default_evaluations(200, true));
+    for strategy in [Strategy::Physics, Strategy::Model] {
+        let big = query(&large, large.positions(), strategy, true);
+        assert_eq!(big.evaluations(), default_evaluations(200, true));
+    }
     // An explicit budget bounds the search; the fallback to the policy's
     // own pushes adds at most FALLBACK_PREDICTIONS.
     let set = models();

@@ -42,7 +42,7 @@ pub use placed::Planner;
 pub use predict::{Candidate, ContactPolicy, PredictError, Predictor};
 pub use predictive_policy::PredictivePolicy;
 pub use query::{
-    DEFAULT_CANDIDATES, FIXED_EVALUATION_EDGES, PHYSICS_LARGE_TREE_FACTOR, Query,
+    DEFAULT_CANDIDATES, FIXED_EVALUATION_EDGES, LARGE_TREE_SEARCH_FACTOR, Query,
     REGION_EVALUATION_EDGES, Stance, Strategy, default_evaluations,
 };
 pub use stages::{DEFAULT_GEOMETRIC_CANDIDATES, FALLBACK_PREDICTIONS};
