@@ -290,9 +290,11 @@ impl ModelSet {
 
 impl ModelSet {
     /// The forward model for a tree of `nodes` nodes: the paper's GNN up to
-    /// the largest size its card says it is evaluated on (30 nodes: there
-    /// it is the more accurate, `docs/results/sizes_eval.md`), the path
-    /// model for every other size, whichever is loaded otherwise.
+    /// the largest size its card says it is evaluated on (30 nodes, the
+    /// paper's sizes, where the planner's evaluations were made with it;
+    /// the held path model is now the more accurate there too,
+    /// `models/README.md`), the path model for every other size, whichever
+    /// is loaded otherwise.
     pub fn forward_for(&self, nodes: usize) -> Option<&ServedModel> {
         // Smaller trees too: the GNN's error shrinks with the size.
         let gnn = self
@@ -345,7 +347,7 @@ pub fn predict_displacements(
                 .iter()
                 .zip(&rows)
                 .map(|(path, r)| {
-                    path.positions(output, tree, r)
+                    path.held_positions(output, tree, r)
                         .iter()
                         .zip(tree.positions())
                         .map(|(a, b)| a - b)

@@ -141,7 +141,7 @@ impl Examples {
         let graph = encode_forward_path(tree, episode.push.node, &episode.push.vector)
             .expect("dataset episodes are validated when read");
         graph
-            .positions(output, tree, &rows[..3 * graph.input.n])
+            .held_positions(output, tree, &rows[..3 * graph.input.n])
             .iter()
             .zip(&episode.final_positions)
             .map(|(a, b)| (a - b).norm())

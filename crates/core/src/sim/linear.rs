@@ -16,7 +16,7 @@
 //! are large and it is a first guess, which the path forward model
 //! ([`crate::graph::path`]) corrects. It costs O(path) and never fails.
 
-use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Point3, Vector2, Vector3};
 
 use super::Push;
 use super::contact::{ContactModel, GRIP_OFFSET};
@@ -38,12 +38,43 @@ pub fn linear_rotations(
         ContactModel::Slot => tree.position(c) - axis * GRIP_OFFSET,
         ContactModel::Pinned => tree.position(c),
     };
+    least_energy_turns(
+        tree,
+        tree.positions(),
+        c,
+        &held,
+        &axis,
+        &push.vector,
+        contact,
+    )
+}
+
+/// The least-energy turns of node `c`'s path joints, the tree placed at
+/// `positions`, that move the point `held` of `c`'s branch by `shift`
+/// (pinned), or by `shift`'s two components across the branch direction
+/// `axis` (slot: the branch may slide along it). Each is a rotation vector
+/// (rad, world frame) about its joint where `positions` put it, keyed by the
+/// node of the branch it turns, contact first. At rest this is the
+/// linearised push ([`linear_rotations`]); placed elsewhere, one step of
+/// the same solve from there. Empty for the root or a node out of range.
+pub fn least_energy_turns(
+    tree: &Tree,
+    positions: &[Point3<f64>],
+    c: usize,
+    held: &Point3<f64>,
+    axis: &Vector3<f64>,
+    shift: &Vector3<f64>,
+    contact: ContactModel,
+) -> Vec<(usize, Vector3<f64>)> {
+    if c == 0 || c >= tree.len() || positions.len() != tree.len() {
+        return Vec::new();
+    }
     let mut path = tree.path_to_root(c);
     path.pop();
     let joints: Vec<(usize, Vector3<f64>, f64)> = path
         .iter()
         .map(|&a| {
-            let joint = tree.position(tree.parent(a).expect("non-root"));
+            let joint = positions[tree.parent(a).expect("non-root")];
             (
                 a,
                 held - joint,
@@ -58,7 +89,7 @@ pub fn linear_rotations(
     let force = match contact {
         ContactModel::Pinned => compliance
             .pseudo_inverse(1e-12)
-            .map_or_else(|_| Vector3::zeros(), |inv| inv * push.vector),
+            .map_or_else(|_| Vector3::zeros(), |inv| inv * shift),
         ContactModel::Slot => {
             let helper = if axis.x.abs() < 0.9 {
                 Vector3::x()
@@ -73,7 +104,7 @@ pub fn linear_rotations(
                 e2.dot(&(compliance * e1)),
                 e2.dot(&(compliance * e2)),
             );
-            let b = Vector2::new(e1.dot(&push.vector), e2.dot(&push.vector));
+            let b = Vector2::new(e1.dot(shift), e2.dot(shift));
             a.try_inverse().map_or_else(Vector3::zeros, |inv| {
                 let x = inv * b;
                 e1 * x.x + e2 * x.y

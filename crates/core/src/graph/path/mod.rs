@@ -48,6 +48,7 @@ use crate::tree::Tree;
 use kinematics::graph_positions;
 
 pub mod decode;
+pub mod hold;
 pub mod kinematics;
 
 /// What graph a model reads and what its 3-vector output means.
@@ -127,8 +128,10 @@ pub struct PathGraph {
     /// Tree node of each graph node: the root, the path, then the side
     /// branches' first nodes.
     pub nodes: Vec<usize>,
-    /// The root and the path: graph nodes 0..path_len.
+    /// The root and the path: graph nodes 0..path_len (the contact last).
     pub path_len: usize,
+    /// The push (m).
+    pub push: Vector3<f64>,
     /// For each side node (graph index ≥ path_len), the graph index of the
     /// path node it hangs from.
     pub hangs_from: Vec<usize>,
@@ -302,6 +305,7 @@ pub fn encode_forward_path(
     Ok(PathGraph {
         nodes,
         path_len,
+        push: *push,
         hangs_from,
         prior,
         prior_rotations,
