@@ -14,7 +14,7 @@
 //! for a centimetre's miss (second order); the simulator's own answer,
 //! which holds exactly, is left where it is.
 
-use nalgebra::{Point3, Rotation3, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::sim::ContactModel;
 use crate::sim::contact::GRIP_OFFSET;
@@ -78,19 +78,33 @@ pub fn hold_contact(
         &(g - h),
         ContactModel::Slot,
     );
-    // Root side first: each turn carries the joints beyond it, which the
-    // later turns then rotate about where they are.
+    // Root side first, each turn about its joint where the turns before it
+    // carried it; composed into one rigid motion per path branch, so one
+    // pass over the tree places every node (O(N), not a pass per joint).
+    let mut motions: Vec<(usize, Isometry3<f64>)> = Vec::with_capacity(turns.len());
+    let mut carried = Isometry3::identity();
     for (node, turn) in turns.into_iter().rev() {
         let Some(parent) = tree.parent(node) else {
             continue;
         };
-        let pivot = positions[parent];
-        let rotation = Rotation3::new(turn);
-        let mut stack = vec![node];
-        while let Some(i) = stack.pop() {
-            positions[i] = pivot + rotation * (positions[i] - pivot);
-            stack.extend_from_slice(tree.children(i));
+        let pivot = carried * positions[parent];
+        let about_pivot = Translation3::from(pivot.coords)
+            * UnitQuaternion::from_scaled_axis(turn)
+            * Translation3::from(-pivot.coords);
+        carried = about_pivot * carried;
+        motions.push((node, carried));
+    }
+    let mut stack: Vec<(usize, Option<Isometry3<f64>>)> = vec![(0, None)];
+    while let Some((i, motion)) = stack.pop() {
+        let motion = motions
+            .iter()
+            .find(|(node, _)| *node == i)
+            .map(|(_, m)| *m)
+            .or(motion);
+        if let Some(m) = motion {
+            positions[i] = m * positions[i];
         }
+        stack.extend(tree.children(i).iter().map(|&c| (c, motion)));
     }
 }
 
@@ -99,6 +113,7 @@ mod tests {
     use super::*;
     use crate::sim::{Push, SimConfig, simulate};
     use crate::tree::{OrchardParams, generate_orchard};
+    use nalgebra::Rotation3;
 
     /// The simulator's answer holds exactly and is left as it is; a
     /// perturbed answer (one path branch turned 0.03 rad, a model's
