@@ -1,8 +1,9 @@
 //! The gripper's hold on a path model's answer: the one thing about a push's
 //! outcome known exactly before any model runs is where the gripper holds
 //! the branch. In the simulator's slot contact ([`crate::sim::contact`]) the
-//! gripper point g = p⁰_c − [`GRIP_OFFSET`]·b̂ + T lies on the contacted
-//! branch's deformed axis. A model's turns leave g off that axis by 0.5 cm
+//! gripper point g = p⁰_c − 1 cm·b̂ + T
+//! ([`GRIP_OFFSET`](crate::sim::contact::GRIP_OFFSET)) lies on the
+//! contacted branch's deformed axis. A model's turns leave g off that axis by 0.5 cm
 //! at N = 20 and 1.0 cm at N = 500 (mean over held-out orchard pushes),
 //! and everything the contact branch carries inherits the miss.
 //!
@@ -17,16 +18,17 @@
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::sim::ContactModel;
-use crate::sim::contact::GRIP_OFFSET;
+use crate::sim::contact::Contact;
 use crate::sim::linear::least_energy_turns;
 use crate::tree::Tree;
 
 /// Where the gripper point is when node `contact` is pushed by `push` (m):
-/// [`GRIP_OFFSET`] back along its branch from its rest position, moved by
-/// the push. `None` for the root or a node out of range.
+/// [`GRIP_OFFSET`](crate::sim::contact::GRIP_OFFSET) back along its
+/// branch from its rest position, moved by the push (the slot's target,
+/// [`Contact::new`]). `None` for the root or a node out of range.
 pub fn gripper_point(tree: &Tree, contact: usize, push: &Vector3<f64>) -> Option<Point3<f64>> {
-    let axis = tree.branch_direction(contact)?;
-    Some(tree.position(contact) - axis * GRIP_OFFSET + push)
+    (contact != 0 && contact < tree.len())
+        .then(|| Contact::new(tree, contact, push, ContactModel::Slot).target)
 }
 
 /// How far (m) the gripper point lies off the contacted branch's axis in
