@@ -76,8 +76,8 @@ impl PathGraph {
     /// [`PathGraph::positions`] moved onto the gripper's hold
     /// ([`hold_contact`]): what the models serve. On held-out orchard trees
     /// (`eval sizes`, seed 1001) it took e_N at N = 20 from 1.97 to 1.64 cm
-    /// and at N = 500 from 4.39 to 3.99 (seed 2002: 1.59 to 1.22, 5.01 to
-    /// 4.85).
+    /// and at N = 500 from 4.39 to 3.99 (seed 2002: 1.59 to 1.20, 5.01 to
+    /// 4.83).
     pub fn held_positions(
         &self,
         output: PathOutput,

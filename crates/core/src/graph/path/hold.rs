@@ -3,9 +3,9 @@
 //! the branch. In the simulator's slot contact ([`crate::sim::contact`]) the
 //! gripper point g = p⁰_c − 1 cm·b̂ + T
 //! ([`GRIP_OFFSET`](crate::sim::contact::GRIP_OFFSET)) lies on the
-//! contacted branch's deformed axis. A model's turns leave g off that axis by 0.5 cm
-//! at N = 20 and 1.0 cm at N = 500 (mean over held-out orchard pushes),
-//! and everything the contact branch carries inherits the miss.
+//! contacted branch's deformed axis. A model's turns leave g off that axis
+//! by 0.5 cm at N = 20 and 1.0 cm at N = 500 (mean over held-out orchard
+//! pushes), and everything the contact branch carries inherits the miss.
 //!
 //! [`hold_contact`] moves the answer back onto the hold the least-energy
 //! way: the residual g − h (h the axis point nearest g) is pushed by the
