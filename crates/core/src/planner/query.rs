@@ -158,9 +158,9 @@ pub const REGION_EVALUATION_EDGES: usize = 48 * 30 * 29;
 /// gets above [`crate::tree::FULL_GRAPH_MAX_NODES`]. There a prediction
 /// reads one path: a path graph's GNN pass or one path's simulation costs
 /// 1-3 ms at N = 200 on 2 cores, so a plan of 150 predictions stays far
-/// under its latency goals (`eval plan`, p95 at most 0.72 s), and the wider search finds
-/// the narrow pushes a large tree leaves between its load limits and its
-/// crown. Measured at N = 200 with a base region (`eval tasks --tasks
+/// under its latency goals (`eval plan`, p95 at most 0.72 s), and the
+/// wider search finds the narrow pushes a large tree leaves between its
+/// load limits and its crown. Measured at N = 200 with a base region (`eval tasks --tasks
 /// clear --per-size 120`, UR5; the share of what the arm-free oracle
 /// solves, seeds 7 / 11, with the paper's region and with
 /// `--around-tree 2`):
