@@ -260,6 +260,10 @@ pub struct TrainFoliageArgs {
     /// At most this many cubes from each training scan.
     #[arg(long, default_value_t = 4000)]
     per_scan: usize,
+    /// Stages after the first, each looking again with the stage before's
+    /// calls of the cubes around.
+    #[arg(long, default_value_t = 1)]
+    context_stages: usize,
     #[arg(long, default_value = "models/foliage.json")]
     out: PathBuf,
 }
@@ -267,11 +271,12 @@ pub struct TrainFoliageArgs {
 pub fn train_foliage_cmd(args: TrainFoliageArgs) -> anyhow::Result<()> {
     use treemanip::nn::train::foliage::{FoliageConfig, train_foliage};
     let command = format!(
-        "treemanip train-foliage --seed {} --epochs {} --hidden {} --per-scan {} --out {}",
+        "treemanip train-foliage --seed {} --epochs {} --hidden {} --per-scan {} --context-stages {} --out {}",
         args.seed,
         args.epochs,
         args.hidden,
         args.per_scan,
+        args.context_stages,
         args.out.display()
     );
     let config = FoliageConfig {
@@ -279,13 +284,14 @@ pub fn train_foliage_cmd(args: TrainFoliageArgs) -> anyhow::Result<()> {
         epochs: args.epochs,
         hidden: args.hidden,
         per_scan: args.per_scan,
+        context_stages: args.context_stages,
         batch: 1024,
         learning_rate: 1e-3,
         command,
     };
     let started = std::time::Instant::now();
-    let classifier = train_foliage(&config, |epoch, loss| {
-        eprintln!("epoch {epoch}: loss {loss:.4}");
+    let classifier = train_foliage(&config, |stage, epoch, loss| {
+        eprintln!("stage {stage} epoch {epoch}: loss {loss:.4}");
     })?;
     eprintln!(
         "{} cubes, {:.0} s; held out (test split, one leafy view, 3 mm): leaf points found {:.3}, bark points lost {:.3}",

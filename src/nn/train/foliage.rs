@@ -11,6 +11,10 @@
 //! cross-entropy of the logit. The card records the share of leaf and
 //! bark points called foliage on the test split's leafy one-view scans
 //! (3 mm), trees the training never saw.
+//!
+//! Stages after the first ([`crate::scan::foliage::context`]) are trained
+//! the same way, one after another, on the same scans' cubes with their
+//! context under the stages trained before them.
 
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::Device;
@@ -24,7 +28,8 @@ use super::modules::TrainMlp;
 use crate::dataset::Split;
 use crate::model::mlp::Mlp;
 use crate::scan::foliage::{
-    FEATURES, Features, FoliageCard, FoliageClassifier, Grids, call_foliage, features_of,
+    FEATURES, FoliageCard, FoliageClassifier, Grids, STAGE_INPUTS, Stage, call_foliage,
+    context_features, features_and_neighbours, features_of, stage_inputs,
 };
 use crate::scan::{Origin, ScanParams, scan};
 use crate::seed::derive_seed;
@@ -37,6 +42,9 @@ pub struct FoliageConfig {
     pub seed: u64,
     pub epochs: usize,
     pub hidden: usize,
+    /// Stages after the first, each reading the one before's calls of
+    /// the cubes around.
+    pub context_stages: usize,
     /// At most this many cubes from each scan.
     pub per_scan: usize,
     pub batch: usize,
@@ -106,8 +114,15 @@ fn scan_of(
     .unwrap_or_else(|e| panic!("the training scans' parameters are valid: {e}"))
 }
 
-/// The cubes' features and labels (1: leaf) of the training scans.
-pub fn examples(config: &FoliageConfig) -> anyhow::Result<(Vec<Features>, Vec<f32>)> {
+/// The training cubes' inputs to stage `stage` (row after row, each
+/// [`FEATURES`] long for the first stage, [`STAGE_INPUTS`] for the later
+/// ones, whose context comes from `classifier`'s stages so far) and
+/// their labels (1: leaf). The same cubes for every stage.
+pub fn examples(
+    config: &FoliageConfig,
+    classifier: &FoliageClassifier,
+    stage: usize,
+) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
     let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(config.seed, &[0xf011]));
     let (mut xs, mut ys) = (Vec::new(), Vec::new());
     for (i, tree) in trees(Split::Train, config.seed)?.iter().enumerate() {
@@ -126,7 +141,19 @@ pub fn examples(config: &FoliageConfig) -> anyhow::Result<(Vec<Features>, Vec<f3
             let mut ids: Vec<usize> = (0..voxels.centres.len()).collect();
             ids.shuffle(&mut rng);
             ids.truncate(config.per_scan);
-            xs.extend(features_of(&grids, &nalgebra::Vector3::z(), &ids));
+            let up = nalgebra::Vector3::z();
+            if stage == 0 {
+                for f in features_of(&grids, &up, &ids) {
+                    xs.extend_from_slice(&f);
+                }
+            } else {
+                let (all, near) = features_and_neighbours(&grids, &up);
+                let chances = classifier.chances(&grids, (&all, &near), stage);
+                let context = context_features(&grids, &near, &chances);
+                for &v in &ids {
+                    xs.extend_from_slice(&stage_inputs(&all[v], &context[v]));
+                }
+            }
             ys.extend(ids.iter().map(|&v| {
                 if 2 * leaf[v] > voxels.counts[v] {
                     1.0
@@ -139,54 +166,47 @@ pub fn examples(config: &FoliageConfig) -> anyhow::Result<(Vec<Features>, Vec<f3
     Ok((xs, ys))
 }
 
-/// Trains the classifier; `on_epoch(epoch, mean loss)` after each epoch.
-pub fn train_foliage(
+/// Trains one stage on rows of `width` inputs; `on_epoch(epoch, mean
+/// loss)` after each epoch.
+fn fit_stage(
     config: &FoliageConfig,
-    mut on_epoch: impl FnMut(usize, f64),
-) -> anyhow::Result<FoliageClassifier> {
-    anyhow::ensure!(config.epochs > 0 && config.batch > 0 && config.hidden > 0);
-    let (xs, ys) = examples(config)?;
-    anyhow::ensure!(!xs.is_empty(), "no training cubes");
+    (xs, ys): (&[f32], &[f32]),
+    width: usize,
+    rng: &mut ChaCha8Rng,
+    on_epoch: &mut impl FnMut(usize, f64),
+) -> Stage {
     // Normalisation from the training cubes.
-    let n = xs.len() as f64;
-    let mut mean = vec![0.0f32; FEATURES];
-    let mut std = vec![0.0f32; FEATURES];
-    for k in 0..FEATURES {
-        let m = xs.iter().map(|x| x[k] as f64).sum::<f64>() / n;
-        let v = xs.iter().map(|x| (x[k] as f64 - m).powi(2)).sum::<f64>() / n;
+    let n = ys.len() as f64;
+    let mut mean = vec![0.0f32; width];
+    let mut std = vec![0.0f32; width];
+    for k in 0..width {
+        let column = || xs.iter().skip(k).step_by(width).map(|&x| x as f64);
+        let m = column().sum::<f64>() / n;
+        let v = column().map(|x| (x - m).powi(2)).sum::<f64>() / n;
         mean[k] = m as f32;
         std[k] = v.sqrt().max(1e-6) as f32;
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(config.seed, &[0xf012]));
-    let mut classifier = FoliageClassifier {
+    let mut stage = Stage {
         mean,
         std,
-        mlp: Mlp::random(FEATURES, config.hidden, 1, &mut rng),
-        card: FoliageCard {
-            command: config.command.clone(),
-            seed: config.seed,
-            data: format!(
-                "scans of train-split trees (SCA, one per size 10-30; orchard, sizes {:?}), conditions (views, noise m, leaves per twig) {:?}, at most {} cubes each",
-                ORCHARD_SIZES, CONDITIONS, config.per_scan
-            ),
-            examples: xs.len(),
-            held_out_leaf_found: 0.0,
-            held_out_bark_lost: 0.0,
-        },
+        mlp: Mlp::random(width, config.hidden, 1, rng),
     };
-    let normalised: Vec<Features> = xs.iter().map(|x| classifier.normalise(x)).collect();
+    let normalised: Vec<f32> = xs.chunks(width).flat_map(|x| stage.normalise(x)).collect();
     let device = Device::flex().autodiff();
-    let mut model = TrainMlp::new(&classifier.mlp, &device);
+    let mut model = TrainMlp::new(&stage.mlp, &device);
     let mut optimizer = AdamConfig::new().init();
-    let mut ids: Vec<usize> = (0..xs.len()).collect();
+    let mut ids: Vec<usize> = (0..ys.len()).collect();
     for epoch in 0..config.epochs {
-        ids.shuffle(&mut rng);
+        ids.shuffle(rng);
         let (mut sum, mut count) = (0.0, 0usize);
         for chunk in ids.chunks(config.batch) {
             let b = chunk.len();
-            let x: Vec<f32> = chunk.iter().flat_map(|&i| normalised[i]).collect();
+            let x: Vec<f32> = chunk
+                .iter()
+                .flat_map(|&i| normalised[i * width..(i + 1) * width].iter().copied())
+                .collect();
             let y: Vec<f32> = chunk.iter().map(|&i| ys[i]).collect();
-            let z = model.forward(tensor(x, [b, FEATURES], &device));
+            let z = model.forward(tensor(x, [b, width], &device));
             let y = tensor(y, [b, 1], &device);
             // Binary cross-entropy of the logit z, written stably:
             // max(z, 0) − y z + ln(1 + e^−|z|).
@@ -198,7 +218,42 @@ pub fn train_foliage(
         }
         on_epoch(epoch, sum / count as f64);
     }
-    classifier.mlp = model.weights();
+    stage.mlp = model.weights();
+    stage
+}
+
+/// Trains the classifier, its first stage and then each context stage;
+/// `on_epoch(stage, epoch, mean loss)` after each epoch.
+pub fn train_foliage(
+    config: &FoliageConfig,
+    mut on_epoch: impl FnMut(usize, usize, f64),
+) -> anyhow::Result<FoliageClassifier> {
+    anyhow::ensure!(config.epochs > 0 && config.batch > 0 && config.hidden > 0);
+    let mut rng = ChaCha8Rng::seed_from_u64(derive_seed(config.seed, &[0xf012]));
+    let mut classifier = FoliageClassifier {
+        stages: Vec::new(),
+        card: FoliageCard {
+            command: config.command.clone(),
+            seed: config.seed,
+            data: format!(
+                "scans of train-split trees (SCA, one per size 10-30; orchard, sizes {:?}), conditions (views, noise m, leaves per twig) {:?}, at most {} cubes each; {} stage(s) after the first, each on the same cubes with their context",
+                ORCHARD_SIZES, CONDITIONS, config.per_scan, config.context_stages
+            ),
+            examples: 0,
+            held_out_leaf_found: 0.0,
+            held_out_bark_lost: 0.0,
+        },
+    };
+    for stage in 0..=config.context_stages {
+        let (xs, ys) = examples(config, &classifier, stage)?;
+        anyhow::ensure!(!ys.is_empty(), "no training cubes");
+        classifier.card.examples = ys.len();
+        let width = if stage == 0 { FEATURES } else { STAGE_INPUTS };
+        let fitted = fit_stage(config, (&xs, &ys), width, &mut rng, &mut |e, l| {
+            on_epoch(stage, e, l)
+        });
+        classifier.stages.push(fitted);
+    }
     let (found, lost) = held_out(&classifier, config.seed)?;
     classifier.card.held_out_leaf_found = found;
     classifier.card.held_out_bark_lost = lost;
