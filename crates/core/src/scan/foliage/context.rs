@@ -185,3 +185,40 @@ pub fn context_features(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scan::foliage::shape::features_and_neighbours;
+    use nalgebra::Vector3;
+
+    /// Every cube called one thing (no bark, or no leaf) leaves the other
+    /// set empty: the context is still defined (no line, no plane).
+    #[test]
+    fn a_cloud_called_all_leaf_or_all_bark_has_a_context() {
+        let points: Vec<Point3<f64>> = (0..2000)
+            .map(|i| {
+                let a = i as f64 * 0.618_034 * std::f64::consts::TAU;
+                let r = 0.025 * ((i as f64 + 0.5) / 2000.0).sqrt();
+                Point3::new(r * a.cos(), r * a.sin(), 0.0005 * (i % 3) as f64)
+            })
+            .collect();
+        let grids = Grids::new(&points);
+        let (_, near) = features_and_neighbours(&grids, &Vector3::z());
+        for called in [0.0, 1.0] {
+            let chances = vec![called; grids.fine.centres.len()];
+            let context = context_features(&grids, &near, &chances);
+            assert_eq!(context.len(), grids.fine.centres.len());
+            assert!(context.iter().flatten().all(|x| x.is_finite()));
+            let lines = &context[0][5..23];
+            if called == 1.0 {
+                // No bark: no line at any scale.
+                assert_eq!(lines[0], 0.0, "{lines:?}");
+                assert_eq!(lines[4], 2.0, "{lines:?}");
+            } else {
+                // No leaf: no plane.
+                assert_eq!(context[0][23], 0.0);
+            }
+        }
+    }
+}
