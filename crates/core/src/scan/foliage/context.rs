@@ -13,7 +13,7 @@
 //! cube from it?) at 2, 4 and 8 cm, and the shape of the cubes called
 //! leaf at 2 cm (is this cube on a flat disc of them?).
 
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
 use super::shape::{FineNeighbours, Grids};
@@ -34,66 +34,65 @@ const WIDE_NEIGHBOURS: usize = 128;
 pub type ContextFeatures = [f32; CONTEXT_FEATURES];
 
 /// The mean of `chances` over the cubes `near`, each weighted by its
-/// points.
-fn mean_chance(near: &[(usize, f64)], chances: &[f64], counts: &[usize]) -> f32 {
+/// points (0 over none).
+pub(super) fn mean_chance(near: &[(usize, f64)], chances: &[f64], counts: &[usize]) -> f64 {
     let (mut sum, mut weight) = (0.0, 0.0);
     for &(j, _) in near {
         sum += chances[j] * counts[j] as f64;
         weight += counts[j] as f64;
     }
-    (sum / weight.max(1.0)) as f32
+    sum / weight.max(1.0)
 }
 
 /// What a coarse cube's surroundings say, shared by its fine cubes.
 struct CoarseContext {
     /// Mean chance within 4 and 8 cm.
     chance: [f32; 2],
-    /// The cubes called bark within 4 cm (fine) and 8 cm (coarse): their
-    /// number (log) and spreads, their main axis and mean.
-    lines: [(Point3<f64>, nalgebra::Vector3<f64>, [f32; 4]); 2],
+    /// The cubes called bark within 4 cm (fine) and 8 cm (coarse).
+    lines: [Line; 2],
 }
 
-/// The line through the cubes `q`: its mean, main axis, and the number
-/// (log) and spreads of `q` (the second and third over the first, the
-/// first over `r`). Fewer than three cubes read as no line at all.
-fn line(q: &[Point3<f64>], r: f64) -> (Point3<f64>, nalgebra::Vector3<f64>, [f32; 4]) {
+/// The line through some cubes: their number (log) and spreads, and
+/// their mean and main axis where there are enough to draw one.
+struct Line {
+    own: [f32; 4],
+    through: Option<(Point3<f64>, Vector3<f64>)>,
+}
+
+/// The line through the cubes `q`: the number (log) and spreads of `q`
+/// (the second and third over the first, the first over `r`), its mean
+/// and main axis. Fewer than three cubes read as no line at all.
+fn line(q: &[Point3<f64>], r: f64) -> Line {
     let count = (q.len() as f32).ln_1p();
     if q.len() < 3 {
-        return (
-            Point3::origin(),
-            nalgebra::Vector3::zeros(),
-            [count, 1.0, 1.0, 0.0],
-        );
+        return Line {
+            own: [count, 1.0, 1.0, 0.0],
+            through: None,
+        };
     }
     let p = principal(q);
     let first = p.spread[0].max(1e-9);
-    (
-        p.mean,
-        p.axes[0],
-        [
+    Line {
+        own: [
             count,
             (p.spread[1] / first) as f32,
             (p.spread[2] / first) as f32,
             (first / r) as f32,
         ],
-    )
+        through: Some((p.mean, p.axes[0])),
+    }
 }
 
 /// A line's features seen from `c`: its own four, then how far `c` is
 /// from its axis and from its mean, over `r` (2 for no line).
-fn line_from(
-    (mean, axis, own): &(Point3<f64>, nalgebra::Vector3<f64>, [f32; 4]),
-    c: &Point3<f64>,
-    r: f64,
-    out: &mut [f32],
-) {
-    out[..4].copy_from_slice(own);
-    if axis.norm() == 0.0 {
+fn line_from(line: &Line, c: &Point3<f64>, r: f64, out: &mut [f32]) {
+    out[..4].copy_from_slice(&line.own);
+    let Some((mean, axis)) = line.through else {
         out[4..6].copy_from_slice(&[2.0, 2.0]);
         return;
-    }
+    };
     let d = c - mean;
-    out[4] = ((d - axis * d.dot(axis)).norm() / r) as f32;
+    out[4] = ((d - axis * d.dot(&axis)).norm() / r) as f32;
     out[5] = (d.norm() / r) as f32;
 }
 
@@ -141,8 +140,8 @@ pub fn context_features(
                 .collect();
             CoarseContext {
                 chance: [
-                    mean_chance(&wide[..within], &coarse_chance, &coarse.counts),
-                    mean_chance(&wide, &coarse_chance, &coarse.counts),
+                    mean_chance(&wide[..within], &coarse_chance, &coarse.counts) as f32,
+                    mean_chance(&wide, &coarse_chance, &coarse.counts) as f32,
                 ],
                 lines: [line(&fine_bark, 0.04), line(&coarse_bark, 0.08)],
             }
@@ -156,16 +155,19 @@ pub fn context_features(
             f[0] = chances[v] as f32;
             let near = neighbours.of(grids, v);
             let within = near.partition_point(|&(_, d)| d <= 0.01);
-            f[1] = mean_chance(&near[..within], chances, &fine.counts);
-            f[2] = mean_chance(&near, chances, &fine.counts);
+            f[1] = mean_chance(&near[..within], chances, &fine.counts) as f32;
+            f[2] = mean_chance(&near, chances, &fine.counts) as f32;
             let around = &coarse_context[coarse.of_point[v]];
             f[3..5].copy_from_slice(&around.chance);
-            let (bark, leaf): (Vec<_>, Vec<_>) = near
-                .iter()
-                .map(|&(j, _)| (fine.centres[j], chances[j] < BARK_BELOW))
-                .partition(|&(_, b)| b);
-            let bark: Vec<Point3<f64>> = bark.into_iter().map(|(p, _)| p).collect();
-            let leaf: Vec<Point3<f64>> = leaf.into_iter().map(|(p, _)| p).collect();
+            let (mut bark, mut leaf) = (Vec::new(), Vec::new());
+            for &(j, _) in &near {
+                let called = if chances[j] < BARK_BELOW {
+                    &mut bark
+                } else {
+                    &mut leaf
+                };
+                called.push(fine.centres[j]);
+            }
             line_from(&line(&bark, 0.02), c, 0.02, &mut f[5..11]);
             line_from(&around.lines[0], c, 0.04, &mut f[11..17]);
             line_from(&around.lines[1], c, 0.08, &mut f[17..23]);

@@ -32,13 +32,15 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 pub use context::{CONTEXT_FEATURES, ContextFeatures, context_features};
+
+use context::mean_chance;
 pub use shape::{
     FEATURES, Features, FineNeighbours, Grids, VOXEL, features, features_and_neighbours,
     features_of,
 };
 
 use crate::model::mlp::Mlp;
-use shape::{coarse_features, fine_features};
+use shape::{coarse_features, features_and_neighbours_with, fine_features};
 
 /// Cubes' chances are averaged within this radius (m).
 pub const SMOOTHING_RADIUS: f64 = 0.012;
@@ -215,8 +217,8 @@ pub fn call_foliage(
 ) -> Option<FoliageCall> {
     let grids = Grids::new(points);
     let voxels = &grids.fine;
+    let coarse = coarse_features(&grids, up);
     if let Some(min) = min_share {
-        let coarse = coarse_features(&grids, up);
         let survey: Vec<usize> = (0..voxels.centres.len()).step_by(SURVEY_STRIDE).collect();
         let (mut leaf, mut all) = (0usize, 0usize);
         for (f, &v) in fine_features(&grids, &coarse, up, &survey)
@@ -232,22 +234,16 @@ pub fn call_foliage(
             return None;
         }
     }
-    let (features, neighbours) = features_and_neighbours(&grids, up);
+    let (features, neighbours) = features_and_neighbours_with(&grids, &coarse, up);
     let chances = classifier.chances(&grids, (&features, &neighbours), usize::MAX);
     let leafy: Vec<bool> = voxels
         .centres
         .par_iter()
         .map(|c| {
-            let (mut sum, mut weight) = (0.0, 0.0);
-            for (j, _) in grids
+            let near = grids
                 .fine_index
-                .near(c, SMOOTHING_NEIGHBOURS, SMOOTHING_RADIUS)
-            {
-                let w = voxels.counts[j] as f64;
-                sum += chances[j] * w;
-                weight += w;
-            }
-            weight > 0.0 && sum / weight > THRESHOLD
+                .near(c, SMOOTHING_NEIGHBOURS, SMOOTHING_RADIUS);
+            mean_chance(&near, &chances, &voxels.counts) > THRESHOLD
         })
         .collect();
     let foliage: Vec<bool> = voxels.of_point.iter().map(|&v| leafy[v]).collect();

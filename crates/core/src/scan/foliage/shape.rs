@@ -162,11 +162,20 @@ pub fn features_and_neighbours(
     grids: &Grids,
     up: &Vector3<f64>,
 ) -> (Vec<Features>, FineNeighbours) {
+    features_and_neighbours_with(grids, &coarse_features(grids, up), up)
+}
+
+/// [`features_and_neighbours`] with the coarse cubes' features already
+/// computed ([`coarse_features`]).
+pub(super) fn features_and_neighbours_with(
+    grids: &Grids,
+    coarse: &[[f32; COARSE_FEATURES]],
+    up: &Vector3<f64>,
+) -> (Vec<Features>, FineNeighbours) {
     let neighbours = FineNeighbours::new(grids);
-    let coarse = coarse_features(grids, up);
     let features = (0..grids.fine.centres.len())
         .into_par_iter()
-        .map(|v| fine_features_from(grids, &coarse, up, v, &neighbours.of(grids, v)))
+        .map(|v| fine_features_from(grids, coarse, up, v, &neighbours.of(grids, v)))
         .collect();
     (features, neighbours)
 }
