@@ -200,8 +200,7 @@ fn best_rotation(pairs: &[(Vector3<f64>, Vector3<f64>, f64)]) -> Option<Rotation
 mod tests {
     use super::*;
     use crate::graph::path::kinematics::linearised_tree;
-    use crate::graph::path::{PATH_GRAPH_TRAINED_NODES, encode_forward_path};
-    use crate::sim::{Push, SimConfig, simulate};
+    use crate::graph::path::{PATH_GRAPH_TRAINED_NODES, encode_forward_path, simulated_side_push};
     use crate::tree::{OrchardParams, generate_orchard};
 
     /// One direction, or none usable, leaves the turn about it free: no
@@ -228,16 +227,7 @@ mod tests {
             .collect();
         let mut checked = 0;
         for contact in contacts {
-            let dir = tree.branch_direction(contact).unwrap();
-            let push = dir.cross(&Vector3::z()).normalize() * 0.08;
-            let Ok(outcome) = simulate(
-                &tree,
-                &Push {
-                    node: contact,
-                    vector: push,
-                },
-                &SimConfig::default(),
-            ) else {
+            let Some((push, outcome)) = simulated_side_push(&tree, contact) else {
                 continue;
             };
             let graph = encode_forward_path(&tree, contact, &push).unwrap();

@@ -113,7 +113,7 @@ pub fn hold_contact(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::{Push, SimConfig, simulate};
+    use crate::graph::path::simulated_side_push;
     use crate::tree::{OrchardParams, generate_orchard};
     use nalgebra::Rotation3;
 
@@ -133,15 +133,7 @@ mod tests {
         let mut improved = 0;
         for &c in &contacts {
             let axis = tree.branch_direction(c).unwrap();
-            let push = axis.cross(&Vector3::z()).normalize() * 0.08;
-            let Ok(out) = simulate(
-                &tree,
-                &Push {
-                    node: c,
-                    vector: push,
-                },
-                &SimConfig::default(),
-            ) else {
+            let Some((push, out)) = simulated_side_push(&tree, c) else {
                 continue;
             };
             let truth = out.final_positions.clone();

@@ -319,6 +319,25 @@ pub fn encode_forward_path(
     })
 }
 
+/// An 8 cm push at `contact`, level and across its branch, and what the
+/// simulator makes of it (`None` where it refuses): the exact answer the
+/// path tests compare against.
+#[cfg(test)]
+pub(crate) fn simulated_side_push(
+    tree: &Tree,
+    contact: usize,
+) -> Option<(Vector3<f64>, crate::sim::PushOutcome)> {
+    use crate::sim::{Push, SimConfig, simulate};
+    let axis = tree.branch_direction(contact)?;
+    let push = axis.cross(&Vector3::z()).normalize() * 0.08;
+    let push_at = Push {
+        node: contact,
+        vector: push,
+    };
+    let outcome = simulate(tree, &push_at, &SimConfig::default()).ok()?;
+    Some((push, outcome))
+}
+
 #[cfg(test)]
 mod tests {
     use super::kinematics::linearised_tree;
