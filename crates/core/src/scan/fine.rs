@@ -7,6 +7,7 @@ use nalgebra::{Point3, Vector3};
 use crate::scan::forks::relocate_forks;
 use crate::scan::levels::{Geodesic, Piece, cross_section, pieces};
 use crate::scan::skeleton::Skeleton;
+use crate::scan::viewpoint::{Sighting, one_sided_viewpoint};
 
 /// The fine skeleton and what was learnt making it.
 pub struct FineSkeleton {
@@ -16,6 +17,8 @@ pub struct FineSkeleton {
     pub points_used: usize,
     /// Warnings for the caller.
     pub notes: Vec<String>,
+    /// Where the sensor stood, when the cloud was seen from one side.
+    pub seen_from: Option<Point3<f64>>,
 }
 
 /// A fitted cross-section counts when its points span at least this angle
@@ -71,6 +74,7 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) ->
     let mut positions = Vec::with_capacity(n);
     let mut fitted: Vec<Option<f64>> = Vec::with_capacity(n);
     let mut confidence = Vec::with_capacity(n);
+    let mut sightings = Vec::new();
     for (k, piece) in pieces.iter().enumerate() {
         let support = (piece.weight as f64 / FULL_SUPPORT).min(1.0);
         let fit = cross_section(points, &piece.members, &piece.centroid, &axes[k]).filter(
@@ -99,6 +103,15 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) ->
             Some((centre, c)) => {
                 positions.push(centre);
                 fitted.push(Some(c.debiased_radius()));
+                if k != 0 {
+                    let off = piece.centroid - centre;
+                    sightings.push(Sighting {
+                        centre,
+                        axis: axes[k],
+                        offset: off - axes[k] * off.dot(&axes[k]),
+                        radius: c.radius,
+                    });
+                }
                 confidence.push(support * (c.coverage / FULL_COVERAGE).min(1.0));
             }
             None => {
@@ -125,11 +138,19 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) ->
             "{borrowed} of {n} cross-sections were seen from too narrow an angle to fit a radius; their radius comes from the branch around them or its parent"
         ));
     }
+    let seen_from = one_sided_viewpoint(&sightings);
+    if let Some(view) = seen_from {
+        notes.push(format!(
+            "the cloud was seen from one side, from the direction of ({:.2}, {:.2}, {:.2}) m (the distance is rough): the far side of every branch is unseen, and radii and axes come from the arcs facing the sensor",
+            view.x, view.y, view.z
+        ));
+    }
     FineSkeleton {
         points_used: kept.iter().map(|&k| pieces[k].weight).sum(),
         skeleton,
         confidence,
         notes,
+        seen_from,
     }
 }
 

@@ -27,6 +27,7 @@ pub mod scanner;
 pub mod score;
 pub mod simplify;
 pub mod skeleton;
+pub mod viewpoint;
 pub mod voxel;
 
 pub use cloud::{CloudError, CropBox, PointCloud};

@@ -159,6 +159,9 @@ pub struct Extraction {
     pub warnings: Vec<String>,
     /// The fine skeleton before simplification (one node per piece).
     pub fine: Skeleton,
+    /// Where the sensor stood (m), when the cloud was seen from one side
+    /// ([`crate::scan::viewpoint`]); said in a warning too.
+    pub seen_from: Option<Point3<f64>>,
 }
 
 /// A cloud without colours is leafy when the shape classifier calls at
@@ -439,6 +442,7 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
         confidence: fine_confidence,
         points_used,
         notes,
+        seen_from,
     } = fine_skeleton(
         &Geodesic {
             points,
@@ -460,6 +464,7 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
         dropped,
         warnings,
         fine,
+        seen_from,
     })
 }
 

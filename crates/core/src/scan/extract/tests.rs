@@ -177,6 +177,49 @@ fn without_colours_leaves_go_by_shape_and_bare_bark_stays() {
     assert!(!found.warnings.iter().any(|w| w.contains("leaves")));
 }
 
+/// A cloud from one viewpoint says so, with a viewpoint in the sensor's
+/// direction; the same tree from three sides does not.
+#[test]
+fn a_cloud_seen_from_one_side_says_where_from() {
+    let tree = generate(20, 5, &ScaParams::default()).unwrap();
+    let one = scan(
+        &tree,
+        &ScanParams {
+            viewpoints: 1,
+            seed: 4,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    let found = extract(&one.cloud, &ExtractParams::default()).unwrap();
+    let seen = found.seen_from.expect("one side");
+    let trunk = tree.positions()[0];
+    let flat = |p: &Point3<f64>| Vector3::new(p.x - trunk.x, p.y - trunk.y, 0.0).normalize();
+    let angle = flat(&seen).dot(&flat(&one.viewpoints[0])).acos();
+    assert!(
+        angle < 0.35,
+        "{seen} for {}: {angle} rad",
+        one.viewpoints[0]
+    );
+    assert!(
+        found
+            .warnings
+            .iter()
+            .any(|w| w.contains("seen from one side"))
+    );
+    let three = scan(
+        &tree,
+        &ScanParams {
+            seed: 4,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    let found = extract(&three.cloud, &ExtractParams::default()).unwrap();
+    assert_eq!(found.seen_from, None);
+    assert!(!found.warnings.iter().any(|w| w.contains("one side")));
+}
+
 #[test]
 fn excess_green_tells_leaves_from_bark_and_fruit() {
     assert!(is_foliage([74, 122, 46]));
