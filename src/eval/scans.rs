@@ -13,7 +13,7 @@
 //! the generator, never a test-split seed), so every tree here is held out.
 
 use crate::dataset::{CollectConfig, Split};
-use crate::scan::{Extraction, ScanParams, Skeleton, scan};
+use crate::scan::{Extraction, ScanParams, Sensor, Skeleton, scan};
 use crate::seed::derive_seed;
 use crate::tree::collection::TreeShape;
 use crate::tree::collection::tree_set;
@@ -31,21 +31,33 @@ pub use rows::{
 };
 
 /// The evaluation's grid: 1 and 3 viewpoints, 1-5 mm noise, without
-/// leaves, with leaves (x, y, z only), with leaves and colour.
+/// leaves, with leaves (x, y, z only), with leaves and colour; then one
+/// view without colour again, the extraction told a camera made the
+/// cloud (`sensor: camera`: what our scans are).
 pub fn default_conditions() -> Vec<Condition> {
     let mut out = Vec::new();
-    for (leaves, colour) in [
-        (0, false),
-        (LEAVES_PER_TWIG, false),
-        (LEAVES_PER_TWIG, true),
-    ] {
-        for views in [1, 3] {
+    let kinds = [
+        (0, false, Sensor::Unknown),
+        (LEAVES_PER_TWIG, false, Sensor::Unknown),
+        (LEAVES_PER_TWIG, true, Sensor::Unknown),
+        (0, false, Sensor::Camera),
+        (LEAVES_PER_TWIG, false, Sensor::Camera),
+    ];
+    for (leaves, colour, sensor) in kinds {
+        // A camera's correction changes nothing seen from three sides.
+        let views: &[usize] = if sensor == Sensor::Camera {
+            &[1]
+        } else {
+            &[1, 3]
+        };
+        for &views in views {
             for noise in [0.001, 0.002, 0.003, 0.005] {
                 out.push(Condition {
                     views,
                     noise,
                     leaves,
                     colour,
+                    sensor,
                 });
             }
         }
@@ -103,7 +115,8 @@ pub fn evaluate_condition(
         if !condition.colour {
             cloud.colors = None;
         }
-        let (row, extraction) = TreeRow::extracted(&Skeleton::of_tree(tree), &cloud);
+        let (row, extraction) =
+            TreeRow::extracted(&Skeleton::of_tree(tree), &cloud, condition.sensor);
         rows.push(row);
         extractions.push(extraction);
     }

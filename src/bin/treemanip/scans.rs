@@ -108,6 +108,12 @@ pub struct FromPointsArgs {
     /// else by shape when the cloud looks leafy), `shape` or `off`.
     #[arg(long, default_value = "auto")]
     foliage: String,
+    /// What made the cloud: `unknown`, or `camera` (returns on the surface
+    /// facing it: a one-sided cloud's axes are moved back from the near
+    /// surface; not for a laser scanner whose beam is wider than the
+    /// twigs).
+    #[arg(long, default_value = "unknown")]
+    sensor: String,
 }
 
 pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
@@ -123,6 +129,11 @@ pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
         foliage: Some(
             serde_json::from_value(serde_json::Value::String(args.foliage.clone())).map_err(
                 |_| anyhow::anyhow!("--foliage must be auto, shape or off, not {}", args.foliage),
+            )?,
+        ),
+        sensor: Some(
+            serde_json::from_value(serde_json::Value::String(args.sensor.clone())).map_err(
+                |_| anyhow::anyhow!("--sensor must be unknown or camera, not {}", args.sensor),
             )?,
         ),
     };

@@ -10,6 +10,7 @@ use treemanip::eval::scans::{
     independent_rows, peer_row, test_trees, to_markdown, write_clouds,
 };
 use treemanip::planner::objective::{DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS, Limits};
+use treemanip::scan::Sensor;
 
 use crate::trees::{NodeSizes, parse_sizes};
 
@@ -63,10 +64,12 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
             || (condition.views == 1
                 && condition.noise == 0.003
                 && condition.leaves == LEAVES_PER_TWIG);
-        // End to end also with colour, for the leafy headline.
-        let leafy_rgb = headline && condition.colour;
-        let headline = headline && !condition.colour;
-        if args.headline_only && !headline && !leafy_rgb {
+        // End to end also with colour, and told a camera made the cloud,
+        // for the leafy headline; clouds written and peers read for the
+        // plain headlines only.
+        let variant = headline && (condition.colour || condition.sensor == Sensor::Camera);
+        let headline = headline && !variant;
+        if args.headline_only && !headline && !variant {
             continue;
         }
         if let Some(dir) = &args.write_clouds
@@ -95,7 +98,7 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
             row.radius_error_mm[1],
             row.per_100k_p50
         );
-        if (headline || leafy_rgb) && args.tasks_per_tree > 0 {
+        if (headline || variant) && args.tasks_per_tree > 0 {
             let e = end_to_end(
                 &trees,
                 &extractions,

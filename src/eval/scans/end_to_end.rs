@@ -242,6 +242,7 @@ mod tests {
     use super::*;
     use crate::eval::scans::{Condition, evaluate_condition, test_trees};
     use crate::planner::objective::{DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS};
+    use crate::scan::Sensor;
 
     /// A trunk forking into two arms at node 2.
     fn fork() -> Tree {
@@ -295,6 +296,7 @@ mod tests {
             noise: 0.002,
             leaves: 0,
             colour: false,
+            sensor: Sensor::Unknown,
         };
         let (_, extractions) = evaluate_condition(&trees, &condition, 7);
         let limits = Limits {

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use super::peers::{Cylinders, Peer, cylinders_skeleton, peer_cases_row};
 use super::rows::{Condition, ConditionRow, TreeRow, summarise};
-use crate::scan::{PointCloud, Skeleton};
+use crate::scan::{PointCloud, Sensor, Skeleton};
 
 /// The range noise σ (m) `scripts/scan-independent` scans with.
 pub const INDEPENDENT_NOISE: f64 = 0.002;
@@ -81,35 +81,52 @@ pub fn independent_rows(dir: &Path, peers: &[Peer]) -> anyhow::Result<Vec<Condit
     views.dedup();
     let mut out = Vec::new();
     for v in views {
+        let these: Vec<&Case> = cases.iter().filter(|c| c.views == v).collect();
+        // One view also as a camera's cloud: what `sensor: camera` does to
+        // a laser scanner's (the reason it is not the default).
+        let sensors: &[Sensor] = if v == 1 {
+            &[Sensor::Unknown, Sensor::Camera]
+        } else {
+            &[Sensor::Unknown]
+        };
+        for &sensor in sensors {
+            let condition = Condition {
+                views: v,
+                noise: INDEPENDENT_NOISE,
+                leaves: 0,
+                colour: false,
+                sensor,
+            };
+            let ours: Vec<TreeRow> = these
+                .iter()
+                .map(|case| {
+                    let (row, _) = TreeRow::extracted(&case.truth, &case.cloud, sensor);
+                    eprintln!(
+                        "  {}: {} points, recall {:.3}, precision {:.3} (1.0 r), radius {:.2} mm{}",
+                        case.stem,
+                        row.points,
+                        row.score.recall[1],
+                        row.score.precision[1],
+                        row.score.radius_error_mm[0],
+                        row.error
+                            .as_ref()
+                            .map(|e| format!(", {e}"))
+                            .unwrap_or_default()
+                    );
+                    row
+                })
+                .collect();
+            let mut row = summarise(&condition, &ours);
+            row.label = format!("treemanip: sylva-rs scans, {}", row.label);
+            out.push(row);
+        }
         let condition = Condition {
             views: v,
             noise: INDEPENDENT_NOISE,
             leaves: 0,
             colour: false,
+            sensor: Sensor::Unknown,
         };
-        let these: Vec<&Case> = cases.iter().filter(|c| c.views == v).collect();
-        let ours: Vec<TreeRow> = these
-            .iter()
-            .map(|case| {
-                let (row, _) = TreeRow::extracted(&case.truth, &case.cloud);
-                eprintln!(
-                    "  {}: {} points, recall {:.3}, precision {:.3} (1.0 r), radius {:.2} mm{}",
-                    case.stem,
-                    row.points,
-                    row.score.recall[1],
-                    row.score.precision[1],
-                    row.score.radius_error_mm[0],
-                    row.error
-                        .as_ref()
-                        .map(|e| format!(", {e}"))
-                        .unwrap_or_default()
-                );
-                row
-            })
-            .collect();
-        let mut row = summarise(&condition, &ours);
-        row.label = format!("treemanip: sylva-rs scans, {}", row.label);
-        out.push(row);
         for &peer in peers {
             let cases = these.iter().map(|c| (c.stem.as_str(), &c.truth));
             out.extend(peer_cases_row(

@@ -5,7 +5,9 @@
 use serde::Serialize;
 
 use crate::eval::plan::percentile;
-use crate::scan::{ExtractParams, Extraction, PointCloud, ScanScore, Skeleton, extract, score};
+use crate::scan::{
+    ExtractParams, Extraction, PointCloud, ScanScore, Sensor, Skeleton, extract, score,
+};
 
 /// One scanning condition.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -18,12 +20,14 @@ pub struct Condition {
     /// Whether the cloud keeps its colours (the extraction then drops
     /// foliage green); without, it has only x, y, z.
     pub colour: bool,
+    /// What the extraction is told made the cloud.
+    pub sensor: Sensor,
 }
 
 impl Condition {
     pub fn label(&self) -> String {
         format!(
-            "{} view{}, {:.0} mm{}{}",
+            "{} view{}, {:.0} mm{}{}{}",
             self.views,
             if self.views == 1 { "" } else { "s" },
             self.noise * 1e3,
@@ -32,7 +36,12 @@ impl Condition {
             } else {
                 String::new()
             },
-            if self.colour { ", RGB" } else { "" }
+            if self.colour { ", RGB" } else { "" },
+            if self.sensor == Sensor::Camera {
+                ", `sensor: camera`"
+            } else {
+                ""
+            }
         )
     }
 }
@@ -56,12 +65,20 @@ pub struct TreeRow {
 }
 
 impl TreeRow {
-    /// Extracts the tree in `cloud` with the default parameters, timed,
-    /// and scores it against `truth`; the extraction comes back beside
-    /// the row.
-    pub fn extracted(truth: &Skeleton, cloud: &PointCloud) -> (Self, Option<Extraction>) {
+    /// Extracts the tree in `cloud` with the default parameters but
+    /// `sensor`, timed, and scores it against `truth`; the extraction
+    /// comes back beside the row.
+    pub fn extracted(
+        truth: &Skeleton,
+        cloud: &PointCloud,
+        sensor: Sensor,
+    ) -> (Self, Option<Extraction>) {
         let start = std::time::Instant::now();
-        let result = extract(cloud, &ExtractParams::default());
+        let params = ExtractParams {
+            sensor,
+            ..ExtractParams::default()
+        };
+        let result = extract(cloud, &params);
         let seconds = start.elapsed().as_secs_f64();
         let row = Self::new(
             truth,
@@ -207,10 +224,15 @@ pub fn to_markdown(rows: &[ConditionRow]) -> String {
 /// The file stem of tree `index`'s cloud under `condition`.
 pub fn cloud_stem(condition: &Condition, index: usize) -> String {
     format!(
-        "v{}_n{:.0}_l{}{}_{index:03}",
+        "v{}_n{:.0}_l{}{}{}_{index:03}",
         condition.views,
         condition.noise * 1e3,
         condition.leaves,
-        if condition.colour { "c" } else { "" }
+        if condition.colour { "c" } else { "" },
+        if condition.sensor == Sensor::Camera {
+            "k"
+        } else {
+            ""
+        }
     )
 }

@@ -7,7 +7,9 @@ use nalgebra::{Point3, Vector3};
 use crate::scan::forks::relocate_forks;
 use crate::scan::levels::{Geodesic, Piece, cross_section, pieces};
 use crate::scan::skeleton::Skeleton;
-use crate::scan::viewpoint::{Sighting, one_sided_viewpoint};
+use crate::scan::viewpoint::{
+    Sensor, Sighting, move_off_near_side, near_side_shift, one_sided_viewpoint,
+};
 
 /// The fine skeleton and what was learnt making it.
 pub struct FineSkeleton {
@@ -30,8 +32,15 @@ const FULL_COVERAGE: f64 = 4.2;
 const FULL_SUPPORT: f64 = 30.0;
 
 /// The fine skeleton of the level sets `bin` (m) wide; `spacing` is the
-/// joints' (it sets how long a stub may be), `up` the unit up.
-pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) -> FineSkeleton {
+/// joints' (it sets how long a stub may be), `up` the unit up, `sensor`
+/// what the returns may be assumed to be ([`Sensor`]).
+pub fn fine_skeleton(
+    g: &Geodesic,
+    bin: f64,
+    spacing: f64,
+    up: &Vector3<f64>,
+    sensor: Sensor,
+) -> FineSkeleton {
     let points = g.points;
     let all = pieces(g, bin);
     let prune_length = (3.0 * bin).max(0.35 * spacing);
@@ -75,6 +84,8 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) ->
     let mut fitted: Vec<Option<f64>> = Vec::with_capacity(n);
     let mut confidence = Vec::with_capacity(n);
     let mut sightings = Vec::new();
+    // Each piece's circle's residual over its radius (infinite: no circle).
+    let mut misfit = Vec::with_capacity(n);
     for (k, piece) in pieces.iter().enumerate() {
         let support = (piece.weight as f64 / FULL_SUPPORT).min(1.0);
         let fit = cross_section(points, &piece.members, &piece.centroid, &axes[k]).filter(
@@ -103,6 +114,7 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) ->
             Some((centre, c)) => {
                 positions.push(centre);
                 fitted.push(Some(c.debiased_radius()));
+                misfit.push(c.rms / c.radius.max(1e-4));
                 if k != 0 {
                     let off = piece.centroid - centre;
                     sightings.push(Sighting {
@@ -117,6 +129,7 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) ->
             None => {
                 positions.push(piece.centroid);
                 fitted.push(None);
+                misfit.push(f64::INFINITY);
                 confidence.push(0.3 * support);
             }
         }
@@ -141,9 +154,18 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, spacing: f64, up: &Vector3<f64>) ->
     let seen_from = one_sided_viewpoint(&sightings);
     if let Some(view) = seen_from {
         notes.push(format!(
-            "the cloud was seen from one side, from the direction of ({:.2}, {:.2}, {:.2}) m (the distance is rough): the far side of every branch is unseen, and radii and axes come from the arcs facing the sensor",
-            view.x, view.y, view.z
+            "the cloud was seen from one side, from the direction of ({:.2}, {:.2}, {:.2}) m (the distance is rough): the far side of every branch is unseen, and radii and axes come from the arcs facing the sensor{}",
+            view.x, view.y, view.z,
+            if sensor == Sensor::Camera {
+                "; as `sensor` is `camera`, the axes were moved back from the near surface"
+            } else {
+                ""
+            }
         ));
+        if sensor == Sensor::Camera {
+            let shift: Vec<f64> = kept.iter().map(|&k| near_side_shift(misfit[k])).collect();
+            move_off_near_side(&mut skeleton, &view, &shift, up);
+        }
     }
     FineSkeleton {
         points_used: kept.iter().map(|&k| pieces[k].weight).sum(),

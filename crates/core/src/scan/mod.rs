@@ -35,3 +35,4 @@ pub use extract::{Dropped, ExtractParams, Extraction, FoliageFilter, extract};
 pub use scanner::{Origin, Scan, ScanParams, scan};
 pub use score::{ScanScore, score};
 pub use skeleton::Skeleton;
+pub use viewpoint::Sensor;

@@ -14,7 +14,7 @@ use super::validate::vector3;
 use crate::api::types::error::PostErrors;
 use crate::api::types::{
     CropJson, DroppedJson, FoliageJson, FromPointsQuery, FromPointsRequest, FromPointsResponse,
-    TreeJson,
+    SensorJson, TreeJson,
 };
 use treemanip_core::scan::io::FormatError;
 use treemanip_core::scan::{CloudError, CropBox, ExtractParams, Extraction, PointCloud, extract};
@@ -142,6 +142,7 @@ impl FromPointsRequest {
             self.spacing,
             self.crop,
             self.foliage,
+            self.sensor,
         )?;
         Ok((
             PointCloud {
@@ -161,6 +162,7 @@ fn params(
     spacing: Option<f64>,
     crop: Option<CropJson>,
     foliage: Option<FoliageJson>,
+    sensor: Option<SensorJson>,
 ) -> Result<ExtractParams, ApiError> {
     let defaults = ExtractParams::default();
     Ok(ExtractParams {
@@ -177,6 +179,7 @@ fn params(
             max: Point3::from(c.max),
         }),
         foliage: foliage.unwrap_or_default().into(),
+        sensor: sensor.unwrap_or_default().into(),
         ..defaults
     })
 }
@@ -231,6 +234,7 @@ impl FromPointsQuery {
             self.spacing,
             crop,
             self.foliage,
+            self.sensor,
         )
     }
 }

@@ -34,6 +34,7 @@ use crate::scan::levels::Geodesic;
 use crate::scan::neighbours::{Graph, PointIndex};
 use crate::scan::simplify::simplify;
 use crate::scan::skeleton::Skeleton;
+use crate::scan::viewpoint::Sensor;
 use crate::scan::voxel::voxelize;
 
 /// The returned nodes' default spacing (m): the median branch length of
@@ -67,6 +68,10 @@ pub struct ExtractParams {
     pub max_gap: f64,
     /// How leaves are found and dropped.
     pub foliage: FoliageFilter,
+    /// What the returns may be assumed to be: with
+    /// [`Sensor::Camera`], a cloud seen from one side has its branch axes
+    /// moved back from the near surface.
+    pub sensor: Sensor,
 }
 
 /// How the extraction finds leaves.
@@ -95,6 +100,7 @@ impl Default for ExtractParams {
             voxel: 0.004,
             max_gap: 0.06,
             foliage: FoliageFilter::Auto,
+            sensor: Sensor::Unknown,
         }
     }
 }
@@ -454,6 +460,7 @@ pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction,
         bin,
         params.spacing,
         &up,
+        params.sensor,
     );
     warnings.extend(notes);
     let (skeleton, confidence) = simplify(&fine, &fine_confidence, params.spacing);

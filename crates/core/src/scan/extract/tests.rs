@@ -220,6 +220,50 @@ fn a_cloud_seen_from_one_side_says_where_from() {
     assert!(!found.warnings.iter().any(|w| w.contains("one side")));
 }
 
+/// Told a camera made it, a one-view cloud's skeleton moves back onto the
+/// branches (closer at 0.5 r); a three-view cloud's does not move.
+#[test]
+fn a_camera_cloud_has_its_axes_moved_back_from_the_near_side() {
+    let tree = generate(24, 6, &ScaParams::default()).unwrap();
+    let truth = Skeleton::of_tree(&tree);
+    let camera = ExtractParams {
+        sensor: Sensor::Camera,
+        ..ExtractParams::default()
+    };
+    let one = scan(
+        &tree,
+        &ScanParams {
+            viewpoints: 1,
+            noise: 0.003,
+            seed: 6,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    let moved = extract(&one.cloud, &camera).unwrap();
+    let kept = extract(&one.cloud, &ExtractParams::default()).unwrap();
+    let (a, b) = (
+        score(&truth, &moved.skeleton),
+        score(&truth, &kept.skeleton),
+    );
+    assert!(
+        a.recall[0] > b.recall[0] + 0.05 && a.precision[0] > b.precision[0] + 0.05,
+        "{a:?} {b:?}"
+    );
+    let three = scan(
+        &tree,
+        &ScanParams {
+            noise: 0.003,
+            seed: 6,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    let moved = extract(&three.cloud, &camera).unwrap();
+    let kept = extract(&three.cloud, &ExtractParams::default()).unwrap();
+    assert_eq!(moved.skeleton, kept.skeleton);
+}
+
 #[test]
 fn excess_green_tells_leaves_from_bark_and_fruit() {
     assert!(is_foliage([74, 122, 46]));

@@ -46,6 +46,7 @@ pub use robots::{
 };
 pub use scan::{
     CropJson, DroppedJson, FoliageJson, FromPointsQuery, FromPointsRequest, FromPointsResponse,
+    SensorJson,
 };
 pub use scene::{
     BaseJson, LinkJson, LinkPosesRequest, LinkPosesResponse, TreeResponse, UrdfRequest,
