@@ -5,8 +5,9 @@
 //! - [`io`]: reading clouds from PLY, PCD, LAS/LAZ and XYZ files;
 //! - [`voxel`], [`neighbours`]: averaging cubes, the neighbourhood graph,
 //!   components and shortest paths;
-//! - [`circle_fit`], [`levels`], [`fine`], [`simplify`]: the steps of
-//!   [`extract::extract`] (its module documentation lists them in order);
+//! - [`circle_fit`], [`levels`], [`fine`], [`forks`], [`viewpoint`],
+//!   [`simplify`]: the steps of [`extract::extract`] (its module
+//!   documentation lists them in order);
 //! - [`skeleton`]: a tree as geometry (positions, parents, radii);
 //! - [`scanner`]: what a camera at K viewpoints would see of a tree;
 //! - [`score`]: recall, precision, radius error and topology against the

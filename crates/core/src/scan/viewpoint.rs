@@ -158,8 +158,8 @@ const STEP: f64 = 0.17;
 /// the trunk's axis, so the trunk fits them about as well as the sensor
 /// does. The search scores a candidate by how closely each offset points
 /// at it (a lobe, cos⁸ of the angle), which the trunk does not do, and the
-/// answer stands when [`MIN_AGREEMENT`] of the weight points within
-/// [`AGREE_ANGLE`] of it. The direction comes out within a few degrees on
+/// answer stands when `MIN_AGREEMENT` of the weight points within
+/// `AGREE_ANGLE` of it. The direction comes out within a few degrees on
 /// the scans measured; the distance is rough (the offsets' directions
 /// change little across a tree seen from 1.5 m).
 pub fn one_sided_viewpoint(sightings: &[Sighting]) -> Option<Point3<f64>> {

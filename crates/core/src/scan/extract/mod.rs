@@ -18,7 +18,8 @@
 //!    fine skeleton ([`crate::scan::levels`]), pruned of stubs shorter than
 //!    a leaf; each piece's centre and radius come from a circle fitted
 //!    across the branch, with the parent's radius where a branch is seen
-//!    from one side only.
+//!    from one side only; a cloud seen from one side says so, and with
+//!    `sensor` a camera its axes move back ([`crate::scan::viewpoint`]).
 //! 6. [`crate::scan::simplify`] keeps a joint at every branch point and
 //!    along branches at most `spacing` apart: the granularity the models
 //!    and the simulator expect.
@@ -29,7 +30,7 @@ use petgraph::unionfind::UnionFind;
 use crate::geometry::principal::principal;
 use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread};
 use crate::scan::fine::{FineSkeleton, fine_skeleton};
-use crate::scan::foliage::{FoliageClassifier, call_foliage};
+use crate::scan::foliage::{FoliageClassifier, call_foliage, is_foliage};
 use crate::scan::levels::Geodesic;
 use crate::scan::neighbours::{Graph, PointIndex};
 use crate::scan::simplify::simplify;
@@ -196,18 +197,6 @@ const ELONGATION: f64 = 2.5;
 /// leafy one-view scans lost 8 points of recall at t = 1.0 that way
 /// (0.697 with every leaf point removed; 0.778 bridged).
 const SUBTREE_SPREAD: f64 = 0.04;
-/// Excess green (2g − r − b of the chromaticity) above which a point's
-/// colour is foliage (Woebbecke et al. 1995): bark, soil and fruit score
-/// near or below zero, leaves about 0.5.
-pub const FOLIAGE_EXCESS_GREEN: f64 = 0.15;
-
-/// Whether a colour is foliage green (dark colours never are: too little
-/// light to tell).
-pub fn is_foliage([r, g, b]: [u8; 3]) -> bool {
-    let sum = r as f64 + g as f64 + b as f64;
-    sum >= 30.0 && (2.0 * g as f64 - r as f64 - b as f64) / sum > FOLIAGE_EXCESS_GREEN
-}
-
 /// Cubes double until the largest connected part holds this share of the
 /// points ...
 const CONNECTED_SHARE: f64 = 0.3;
@@ -218,7 +207,31 @@ const MAX_VOXEL: f64 = 0.064;
 const BIN_VOXELS: f64 = 4.0;
 
 /// Extracts the tree in `cloud`.
+///
+/// Where leaves went by shape (no colours, [`FoliageFilter::Auto`]) and
+/// what was left stands on the ground as two trees, the shape call took
+/// wood that joined them (one of sylva-rs's bare eucalypts, three views,
+/// was refused so): the cloud is read again keeping every point, and a
+/// warning says so. A cloud that is two trees is refused either way.
 pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction, CloudError> {
+    let by_shape = params.foliage == FoliageFilter::Auto && cloud.colors.is_none();
+    match extract_once(cloud, params) {
+        Err(CloudError::SeveralTrees { .. }) if by_shape => {
+            let every_point = ExtractParams {
+                foliage: FoliageFilter::Off,
+                ..params.clone()
+            };
+            let mut found = extract_once(cloud, &every_point)?;
+            found.warnings.push(
+                "without the points that look like leaves the cloud stood as two trees; it was read keeping every point (send `foliage: shape` to drop them anyway)".to_owned(),
+            );
+            Ok(found)
+        }
+        other => other,
+    }
+}
+
+fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction, CloudError> {
     let up = params.validate()?;
     cloud.check(params.max_points)?;
     let mut dropped = Dropped::default();

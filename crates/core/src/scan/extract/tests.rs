@@ -1,6 +1,7 @@
 //! The extraction's tests: leaves by colour and by shape, parts bridged.
 
 use super::*;
+use crate::scan::foliage::is_foliage;
 use crate::scan::scanner::{Origin, ScanParams, scan};
 use crate::scan::score::score;
 use crate::tree::{ScaParams, generate};

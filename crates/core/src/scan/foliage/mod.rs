@@ -205,6 +205,18 @@ pub struct FoliageCall {
 /// costs an eighth of a leafy one.
 const SURVEY_STRIDE: usize = 8;
 
+/// Excess green (2g − r − b of the chromaticity) above which a point's
+/// colour is foliage (Woebbecke et al. 1995): bark, soil and fruit score
+/// near or below zero, leaves about 0.5.
+pub const FOLIAGE_EXCESS_GREEN: f64 = 0.15;
+
+/// Whether a colour is foliage green (dark colours never are: too little
+/// light to tell).
+pub fn is_foliage([r, g, b]: [u8; 3]) -> bool {
+    let sum = r as f64 + g as f64 + b as f64;
+    sum >= 30.0 && (2.0 * g as f64 - r as f64 - b as f64) / sum > FOLIAGE_EXCESS_GREEN
+}
+
 /// Calls each of `points` foliage or not with `classifier`. With
 /// `min_share`, first a survey of every [`SURVEY_STRIDE`]th cube: when
 /// less than that share of the surveyed points look like leaf, `None`
