@@ -271,6 +271,7 @@ impl FromPointsResponse {
                 outside_crop: e.dropped.outside_crop,
                 foliage: e.dropped.foliage,
             },
+            seen_from: e.seen_from.map(|p| vec![p.x, p.y, p.z]),
             warnings,
         }
     }

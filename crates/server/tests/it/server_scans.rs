@@ -66,6 +66,12 @@ fn a_scanned_tree_comes_back_from_json_and_from_ply_and_simulates() {
     assert_eq!(status, 200, "{from_ply}");
     // Binary PLY of doubles carries the same numbers as the JSON.
     assert_eq!(from_json, from_ply);
+    // Three viewpoints: not seen from one side.
+    assert!(
+        from_json["seen_from"].is_null(),
+        "{}",
+        from_json["seen_from"]
+    );
     let found = skeleton_of(&from_json);
     let s = score(&Skeleton::of_tree(&tree), &found);
     assert!(s.recall[1] > 0.85 && s.precision[1] > 0.85, "{s:?}");
@@ -291,9 +297,9 @@ fn a_camera_cloud_seen_from_one_side_has_its_axes_moved_back() {
             ..ScanParams::default()
         },
     )
-    .unwrap()
-    .cloud;
-    let cloud = PointCloud::new(cloud.points);
+    .unwrap();
+    let camera_at = cloud.viewpoints[0];
+    let cloud = PointCloud::new(cloud.cloud.points);
     let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| [p.x, p.y, p.z]).collect();
     let says = |answer: &Value, what: &str| {
         answer["warnings"]
@@ -309,6 +315,19 @@ fn a_camera_cloud_seen_from_one_side_has_its_axes_moved_back() {
     );
     assert_eq!(status, 200, "{plain}");
     assert!(says(&plain, "seen from one side"), "{}", plain["warnings"]);
+    // From where: within 20° of the camera's direction from the trunk.
+    let seen: Vec<f64> = serde_json::from_value(plain["seen_from"].clone()).unwrap();
+    let trunk = tree.positions()[0];
+    let flat = |x: f64, y: f64| {
+        let (dx, dy) = (x - trunk.x, y - trunk.y);
+        let n = (dx * dx + dy * dy).sqrt();
+        (dx / n, dy / n)
+    };
+    let (a, b) = (flat(seen[0], seen[1]), flat(camera_at.x, camera_at.y));
+    assert!(
+        a.0 * b.0 + a.1 * b.1 > 0.35f64.cos(),
+        "{seen:?} for {camera_at}"
+    );
     assert!(!says(&plain, "moved back"), "{}", plain["warnings"]);
     let (status, camera) = server.json(
         "POST",

@@ -157,6 +157,11 @@ pub struct FromPointsResponse {
     /// Points that make up the tree.
     pub points_used: usize,
     pub points_dropped: DroppedJson,
+    /// Where the sensor stood (m), when the cloud was seen from one side
+    /// (the direction is sure to a few degrees, the distance rough); null
+    /// for a cloud seen from several sides.
+    #[schema(value_type = Option<Vec3>)]
+    pub seen_from: Option<Vec<f64>>,
     /// What could not be seen or had to be guessed, and whether the tree is
     /// larger than this server's other endpoints take.
     pub warnings: Vec<String>,
