@@ -118,6 +118,17 @@ impl Graph {
             .map(|(&t, &d)| (t as usize, d))
     }
 
+    /// Every edge once, `(a, b, length)` with `a < b`.
+    pub fn edges(&self) -> Vec<(usize, usize, f64)> {
+        (0..self.len())
+            .flat_map(|a| {
+                self.neighbours(a)
+                    .filter(move |&(b, _)| a < b)
+                    .map(move |(b, d)| (a, b, d))
+            })
+            .collect()
+    }
+
     pub fn degree(&self, i: usize) -> usize {
         self.offsets[i + 1] - self.offsets[i]
     }
@@ -202,6 +213,19 @@ impl PartialOrd for Visit {
     fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
         Some(self.cmp(other))
     }
+}
+
+/// Closest distance between two parts' points (m).
+pub fn part_distance(points: &[Point3<f64>], labels: &[usize], a: usize, b: usize) -> f64 {
+    let pa: Vec<_> = (0..points.len())
+        .filter(|&i| labels[i] == a)
+        .map(|i| points[i])
+        .collect();
+    let index = PointIndex::new(&pa);
+    (0..points.len())
+        .filter(|&i| labels[i] == b)
+        .map(|i| index.nearest(&points[i]).1)
+        .fold(f64::INFINITY, f64::min)
 }
 
 #[cfg(test)]

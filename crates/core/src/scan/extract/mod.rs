@@ -30,9 +30,9 @@ use petgraph::unionfind::UnionFind;
 use crate::geometry::principal::principal;
 use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread};
 use crate::scan::fine::{FineSkeleton, fine_skeleton};
-use crate::scan::foliage::{FoliageClassifier, call_foliage, is_foliage};
+use crate::scan::foliage::{FoliageClassifier, LEAFY_SHARE, call_foliage, is_foliage};
 use crate::scan::levels::Geodesic;
-use crate::scan::neighbours::{Graph, PointIndex};
+use crate::scan::neighbours::{Graph, PointIndex, part_distance};
 use crate::scan::simplify::simplify;
 use crate::scan::skeleton::Skeleton;
 use crate::scan::viewpoint::Sensor;
@@ -171,10 +171,6 @@ pub struct Extraction {
     pub seen_from: Option<Point3<f64>>,
 }
 
-/// A cloud without colours is leafy when the shape classifier calls at
-/// least this share of its points foliage: on bare scans it calls a few
-/// per cent (bark seen at a glancing angle), on leafy ones about half.
-pub const LEAFY_SHARE: f64 = 0.2;
 /// Largest gap bridged once leaves were dropped by shape: the classifier
 /// takes some twig cubes with the leaves around them. Chosen on 42
 /// train-split trees (leafy, one view, 3 mm; recall / precision at 1.0 r
@@ -214,24 +210,43 @@ const BIN_VOXELS: f64 = 4.0;
 /// was refused so): the cloud is read again keeping every point, and a
 /// warning says so. A cloud that is two trees is refused either way.
 pub fn extract(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction, CloudError> {
-    let by_shape = params.foliage == FoliageFilter::Auto && cloud.colors.is_none();
     match extract_once(cloud, params) {
-        Err(CloudError::SeveralTrees { .. }) if by_shape => {
+        Ok(found) => Ok(found),
+        Err(Refused {
+            error: CloudError::SeveralTrees { .. },
+            leaves_by_shape: true,
+        }) if params.foliage == FoliageFilter::Auto => {
             let every_point = ExtractParams {
                 foliage: FoliageFilter::Off,
                 ..params.clone()
             };
-            let mut found = extract_once(cloud, &every_point)?;
+            let mut found = extract_once(cloud, &every_point).map_err(|r| r.error)?;
             found.warnings.push(
                 "without the points that look like leaves the cloud stood as two trees; it was read keeping every point (send `foliage: shape` to drop them anyway)".to_owned(),
             );
             Ok(found)
         }
-        other => other,
+        Err(refused) => Err(refused.error),
     }
 }
 
-fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction, CloudError> {
+/// Why [`extract_once`] refused a cloud, and whether it had dropped
+/// leaves by shape first (then a second tree may be the drop's doing).
+struct Refused {
+    error: CloudError,
+    leaves_by_shape: bool,
+}
+
+impl From<CloudError> for Refused {
+    fn from(error: CloudError) -> Self {
+        Self {
+            error,
+            leaves_by_shape: false,
+        }
+    }
+}
+
+fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction, Refused> {
     let up = params.validate()?;
     cloud.check(params.max_points)?;
     let mut dropped = Dropped::default();
@@ -253,6 +268,7 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
     let mut warnings = Vec::new();
     // Without, by shape.
     let mut max_gap = params.max_gap;
+    let mut leaves_by_shape = false;
     if params.foliage != FoliageFilter::Off && cloud.colors.is_none() && kept.len() >= MIN_POINTS {
         let min_share = (params.foliage == FoliageFilter::Auto).then_some(LEAFY_SHARE);
         if let Some(call) = call_foliage(&kept, &up, FoliageClassifier::shipped(), min_share) {
@@ -264,6 +280,7 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
                 .map(|(p, _)| *p)
                 .collect();
             dropped.foliage += before - kept.len();
+            leaves_by_shape = true;
             max_gap = max_gap.max(LEAFY_MAX_GAP);
             warnings.push(format!(
                 "{:.0} % of the points look like leaves by their shape and were dropped (the cloud has no colours; with an RGB camera's colours leaves are told more surely); gaps up to {:.0} cm are bridged",
@@ -276,7 +293,8 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
         return Err(CloudError::TooFewInCrop {
             kept: kept.len(),
             min: MIN_POINTS,
-        });
+        }
+        .into());
     }
     check_spread(&kept)?;
 
@@ -330,7 +348,8 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
         return Err(CloudError::TooFew {
             got: kept.len() - dropped.outliers,
             min: MIN_POINTS,
-        });
+        }
+        .into());
     }
 
     // The tree's part.
@@ -345,7 +364,8 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
                     z: root.z,
                     distance: d,
                     max: ROOT_TOLERANCE,
-                });
+                }
+                .into());
             }
             // The largest part near the root (a stray point may be nearest).
             index
@@ -400,9 +420,12 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
         }
         if params.root.is_none() && part_low[l] < main_low + 0.15 {
             let distance = part_distance(points, &labels, main, l);
-            return Err(CloudError::SeveralTrees {
-                points: part_points[l],
-                distance,
+            return Err(Refused {
+                error: CloudError::SeveralTrees {
+                    points: part_points[l],
+                    distance,
+                },
+                leaves_by_shape,
             });
         }
     }
@@ -411,7 +434,7 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
             dropped.fragments += part_points[l];
         }
     }
-    let mut all_edges = graph_edges(&graph);
+    let mut all_edges = graph.edges();
     all_edges.extend(tree_edges);
     graph = Graph::from_edges(points.len(), &all_edges);
 
@@ -427,7 +450,8 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
             largest: main_points,
             extent: (hi - lo).max(0.0),
             min_extent: MIN_TREE_HEIGHT,
-        });
+        }
+        .into());
     }
 
     // The trunk's base: the bottom slice of the tree (near the root when
@@ -486,17 +510,6 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
         fine,
         seen_from,
     })
-}
-
-fn graph_edges(graph: &Graph) -> Vec<(usize, usize, f64)> {
-    (0..graph.len())
-        .flat_map(|a| {
-            graph
-                .neighbours(a)
-                .filter(move |&(b, _)| a < b)
-                .map(move |(b, d)| (a, b, d))
-        })
-        .collect()
 }
 
 /// The closest pair of points of every two parts (of at least
@@ -580,19 +593,6 @@ fn bridges(
     }
     out.sort_by(|p, q| p.0.total_cmp(&q.0));
     out
-}
-
-/// Closest distance between two parts' points (m).
-fn part_distance(points: &[Point3<f64>], labels: &[usize], a: usize, b: usize) -> f64 {
-    let pa: Vec<_> = (0..points.len())
-        .filter(|&i| labels[i] == a)
-        .map(|i| points[i])
-        .collect();
-    let index = PointIndex::new(&pa);
-    (0..points.len())
-        .filter(|&i| labels[i] == b)
-        .map(|i| index.nearest(&points[i]).1)
-        .fold(f64::INFINITY, f64::min)
 }
 
 #[cfg(test)]

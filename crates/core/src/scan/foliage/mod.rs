@@ -205,6 +205,10 @@ pub struct FoliageCall {
 /// costs an eighth of a leafy one.
 const SURVEY_STRIDE: usize = 8;
 
+/// A cloud without colours is leafy when the shape classifier calls at
+/// least this share of its points foliage: on bare scans it calls a few
+/// per cent (bark seen at a glancing angle), on leafy ones about half.
+pub const LEAFY_SHARE: f64 = 0.2;
 /// Excess green (2g − r − b of the chromaticity) above which a point's
 /// colour is foliage (Woebbecke et al. 1995): bark, soil and fruit score
 /// near or below zero, leaves about 0.5.
