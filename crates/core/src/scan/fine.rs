@@ -31,19 +31,22 @@ const FULL_COVERAGE: f64 = 4.2;
 /// Raw points a piece needs for full confidence.
 const FULL_SUPPORT: f64 = 30.0;
 
-/// The fine skeleton of the level sets `bin` (m) wide; `spacing` is the
-/// joints' (it sets how long a stub may be), `up` the unit up, `sensor`
-/// what the returns may be assumed to be ([`Sensor`]).
-pub fn fine_skeleton(
-    g: &Geodesic,
-    bin: f64,
-    spacing: f64,
-    up: &Vector3<f64>,
-    sensor: Sensor,
-) -> FineSkeleton {
+/// A stub (a tip run from its fork) shorter than this many level sets is
+/// a leaf, a fruit or noise beside a branch, and goes. Measured from where
+/// the level sets part it from its parent, which for a twig leaving at a
+/// sharp angle is centimetres past its fork: on sylva-rs's conifers 13-15 %
+/// of the twigs are under 6.3 cm from their fork, and the 0.35 × spacing
+/// this once also took pruned them (three-view recall 0.893 -> 0.911 on
+/// its trees, seeds 1-3, with the parent's axis run through forks; our
+/// train split's clouds unchanged or slightly better).
+const STUB_LEVELS: f64 = 3.0;
+
+/// The fine skeleton of the level sets `bin` (m) wide; `up` is the unit
+/// up, `sensor` what the returns may be assumed to be ([`Sensor`]).
+pub fn fine_skeleton(g: &Geodesic, bin: f64, up: &Vector3<f64>, sensor: Sensor) -> FineSkeleton {
     let points = g.points;
     let all = pieces(g, bin);
-    let prune_length = (3.0 * bin).max(0.35 * spacing);
+    let prune_length = STUB_LEVELS * bin;
     let mut notes = Vec::new();
     let (pieces, pruned) = prune(all, prune_length);
     if pruned > 0 {

@@ -14,6 +14,9 @@ use crate::scan::skeleton::Skeleton;
 const ARM_RANGE: (f64, f64) = (0.015, 0.08);
 /// Parent pieces used for the parent's axis: this far below the fork (m).
 const PARENT_RANGE: (f64, f64) = (0.03, 0.12);
+/// A parent axis fitted through an earlier fork must pass this close (m)
+/// to every piece it is fitted to.
+const STRAIGHT: f64 = 0.003;
 /// Pieces closer than this (m) below a moved fork go too.
 const MIN_SEGMENT: f64 = 0.005;
 /// A fork moves at most this far (m).
@@ -80,9 +83,14 @@ pub fn relocate_forks(skeleton: &mut Skeleton) -> Vec<bool> {
         if lines.len() < 2 {
             continue;
         }
-        // The parent's axis, and the pieces a moved fork may pass.
+        // The parent's axis, and the pieces a moved fork may pass (up to
+        // the first fork below). The axis is fitted up to that fork, or,
+        // where that leaves too few pieces (a whorl's or a twig's forks lie
+        // a few centimetres apart), on through it while the pieces stay on
+        // one straight line.
         let mut below = Vec::new();
         let mut run = Vec::new();
+        let mut local = None;
         let (mut at, mut arc) = (f, 0.0);
         while let Some(p) = skeleton.parents[at] {
             arc += (pos[at] - pos[p]).norm();
@@ -92,15 +100,19 @@ pub fn relocate_forks(skeleton: &mut Skeleton) -> Vec<bool> {
             if (PARENT_RANGE.0..=PARENT_RANGE.1).contains(&arc) {
                 run.push(pos[p]);
             }
-            if arc <= MAX_MOVE {
+            if arc <= MAX_MOVE && local.is_none() {
                 below.push(p);
             }
-            if children[p].len() != 1 || skeleton.parents[p].is_none() {
+            if skeleton.parents[p].is_none() {
                 break;
+            }
+            if children[p].len() != 1 && local.is_none() {
+                local = Some(run.len());
             }
             at = p;
         }
-        let Some(parent_line) = axis(&run) else {
+        let local_axis = axis(&run[..local.unwrap_or(run.len())]);
+        let Some(parent_line) = local_axis.or_else(|| straight_axis(&run)) else {
             continue;
         };
         // Orient the parent axis toward the fork.
@@ -152,6 +164,18 @@ fn axis(points: &[Point3<f64>]) -> Option<(Point3<f64>, Vector3<f64>)> {
     }
     let p = principal(points);
     (p.spread[0] > 1e-4).then_some((p.mean, p.axes[0]))
+}
+
+/// [`axis`], when every point lies within [`STRAIGHT`] of the line.
+fn straight_axis(points: &[Point3<f64>]) -> Option<(Point3<f64>, Vector3<f64>)> {
+    let (c, d) = axis(points)?;
+    points
+        .iter()
+        .all(|p| {
+            let v = p - c;
+            (v - d * v.dot(&d)).norm() <= STRAIGHT
+        })
+        .then_some((c, d))
 }
 
 /// The point with the least sum of squared distances to the lines.
@@ -222,6 +246,41 @@ mod tests {
         assert!((skeleton.positions[fork] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6);
         assert!(!keep[16] && !keep[15] && keep[14]);
         assert_eq!(skeleton.parents[fork], Some(14));
+    }
+
+    /// As above, with a twig leaving the trunk 2 cm below the true fork
+    /// (a whorl): the trunk's axis is fitted on through that fork, so the
+    /// late find still moves back, and the twig's fork stays.
+    #[test]
+    fn a_fork_just_above_another_still_moves_back() {
+        let (mut positions, mut parents) = trunk();
+        let mut add = |p: Point3<f64>, parent: usize| {
+            positions.push(p);
+            parents.push(Some(parent));
+            positions.len() - 1
+        };
+        let mut prev = 14;
+        for k in 1..7 {
+            prev = add(Point3::new(0.0, k as f64 * 0.02, 0.28), prev);
+        }
+        let merged = add(Point3::new(0.0, 0.0, 0.315), 15);
+        let fork = add(Point3::new(0.0, 0.0, 0.33), merged);
+        for side in [-1.0, 1.0] {
+            let mut prev = fork;
+            for k in 3..10 {
+                let s = k as f64 * 0.01;
+                prev = add(Point3::new(side * s, 0.0, 0.3 + s), prev);
+            }
+        }
+        let (skeleton, keep) = relocated(positions, parents);
+        assert!(
+            (skeleton.positions[fork] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6,
+            "{:?}",
+            skeleton.positions[fork]
+        );
+        assert!(!keep[merged] && !keep[15] && keep[14]);
+        assert_eq!(skeleton.parents[fork], Some(14));
+        assert!((skeleton.positions[14] - Point3::new(0.0, 0.0, 0.28)).norm() < 1e-6);
     }
 
     /// Three arms leave a trunk at 0.3 m; the level sets parted one arm at

@@ -16,7 +16,7 @@
 //!    large part standing on the ground is a second tree: refused.
 //! 5. Level sets of the geodesic distance from the trunk's base give the
 //!    fine skeleton ([`crate::scan::levels`]), pruned of stubs shorter than
-//!    a leaf; each piece's centre and radius come from a circle fitted
+//!    three level sets; each piece's centre and radius come from a circle fitted
 //!    across the branch, with the parent's radius where a branch is seen
 //!    from one side only; a cloud seen from one side says so, and with
 //!    `sensor` a camera its axes move back ([`crate::scan::viewpoint`]).
@@ -495,7 +495,6 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
             pred: &pred,
         },
         bin,
-        params.spacing,
         &up,
         params.sensor,
     );
