@@ -83,13 +83,21 @@ impl Skeleton {
         let mut chain_of = vec![None; self.len()];
         // (start node, parent chain)
         let mut stack: Vec<(usize, Option<usize>)> = vec![(0, None)];
+        // Each node is walked once; a parent cycle (which no stage should
+        // make) ends the walk instead of growing a chain without end.
+        let mut walked = vec![false; self.len()];
         while let Some((start, parent)) = stack.pop() {
             for &first in children[start].iter().rev() {
+                if std::mem::replace(&mut walked[first], true) {
+                    continue;
+                }
                 let id = chains.len();
                 let mut nodes = vec![start, first];
                 let mut at = first;
                 chain_of[first] = Some(id);
-                while children[at].len() == 1 {
+                while children[at].len() == 1
+                    && !std::mem::replace(&mut walked[children[at][0]], true)
+                {
                     at = children[at][0];
                     chain_of[at] = Some(id);
                     nodes.push(at);
@@ -206,6 +214,21 @@ mod tests {
         assert_eq!(chain_of[0], None);
         assert_eq!(chain_of[2], Some(0));
         assert_eq!(skeleton.branch_points(), vec![2]);
+    }
+
+    /// A parent cycle through the root (a bug upstream once made one, and
+    /// the walk then grew a chain until memory ran out) ends the walk.
+    #[test]
+    fn a_parent_cycle_does_not_walk_forever() {
+        let positions = (0..4).map(|i| Point3::new(0.0, i as f64, 0.0)).collect();
+        let skeleton = Skeleton {
+            positions,
+            parents: vec![Some(2), Some(0), Some(1), Some(1)],
+            radius: vec![0.01; 4],
+        };
+        let (chains, _) = skeleton.chains();
+        let walked: usize = chains.iter().map(|c| c.nodes.len() - 1).sum();
+        assert!(walked <= 4, "{chains:?}");
     }
 
     #[test]
