@@ -172,9 +172,10 @@ fn axis(points: &[Point3<f64>]) -> Option<(Point3<f64>, Vector3<f64>)> {
 /// apart. A twig that forks again a few centimetres out (a conifer's
 /// whorls, most twigs of sylva-rs's trees) has only two pieces clear of
 /// its fork, and with three required such a fork never moved back: on
-/// sylva-rs's three-view scans 0.930 / 0.951 -> 0.941 / 0.956 (held out,
-/// seeds 4-6: 0.947 / 0.965 -> 0.965 / 0.974), on the test split's leafy
-/// one-view scans 0.744 / 0.893 -> 0.750 / 0.899.
+/// sylva-rs's three-view scans 0.930 / 0.951 -> 0.941 / 0.957 (held out,
+/// seeds 4-6: 0.947 / 0.965 -> 0.965 / 0.974); leafy one-view scans of our
+/// train split 0.752 / 0.907 -> 0.750 / 0.905, of the test split 0.744 /
+/// 0.893 -> 0.749 / 0.898.
 fn arm_axis(points: &[Point3<f64>]) -> Option<(Point3<f64>, Vector3<f64>)> {
     match points {
         [a, b] => {
