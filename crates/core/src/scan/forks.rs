@@ -227,6 +227,24 @@ mod tests {
             .unzip()
     }
 
+    /// Adds a piece at `p` hanging from `parent`; its index.
+    fn grow(
+        positions: &mut Vec<Point3<f64>>,
+        parents: &mut Vec<Option<usize>>,
+        p: Point3<f64>,
+        parent: usize,
+    ) -> usize {
+        positions.push(p);
+        parents.push(Some(parent));
+        positions.len() - 1
+    }
+
+    /// Node `k` of `skeleton` lies at `at`.
+    fn assert_at(skeleton: &Skeleton, k: usize, at: Point3<f64>) {
+        let p = skeleton.positions[k];
+        assert!((p - at).norm() < 1e-6, "node {k} at {p:?}, not {at:?}");
+    }
+
     /// The skeleton through `positions` (every piece 1 cm thick) with its
     /// forks relocated, and which nodes stay.
     fn relocated(
@@ -274,11 +292,7 @@ mod tests {
     #[test]
     fn a_fork_just_above_another_still_moves_back() {
         let (mut positions, mut parents) = trunk();
-        let mut add = |p: Point3<f64>, parent: usize| {
-            positions.push(p);
-            parents.push(Some(parent));
-            positions.len() - 1
-        };
+        let mut add = |p, parent| grow(&mut positions, &mut parents, p, parent);
         let mut prev = 14;
         for k in 1..7 {
             prev = add(Point3::new(0.0, k as f64 * 0.02, 0.28), prev);
@@ -293,11 +307,7 @@ mod tests {
             }
         }
         let (skeleton, keep) = relocated(positions, parents);
-        assert!(
-            (skeleton.positions[fork] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6,
-            "{:?}",
-            skeleton.positions[fork]
-        );
+        assert_at(&skeleton, fork, Point3::new(0.0, 0.0, 0.3));
         assert!(!keep[merged] && !keep[15] && keep[14]);
         assert_eq!(skeleton.parents[fork], Some(14));
         assert!((skeleton.positions[14] - Point3::new(0.0, 0.0, 0.28)).norm() < 1e-6);
@@ -308,11 +318,7 @@ mod tests {
     #[test]
     fn a_fork_whose_arms_fork_again_soon_moves_back() {
         let (mut positions, mut parents) = trunk();
-        let mut add = |p: Point3<f64>, parent: usize| {
-            positions.push(p);
-            parents.push(Some(parent));
-            positions.len() - 1
-        };
+        let mut add = |p, parent| grow(&mut positions, &mut parents, p, parent);
         let merged = add(Point3::new(0.0, 0.0, 0.315), 15);
         let fork = add(Point3::new(0.0, 0.0, 0.33), merged);
         for side in [-1.0, 1.0] {
@@ -327,11 +333,7 @@ mod tests {
             }
         }
         let (skeleton, keep) = relocated(positions, parents);
-        assert!(
-            (skeleton.positions[fork] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6,
-            "{:?}",
-            skeleton.positions[fork]
-        );
+        assert_at(&skeleton, fork, Point3::new(0.0, 0.0, 0.3));
         assert!(!keep[merged] && !keep[15] && keep[14]);
     }
 
@@ -341,11 +343,7 @@ mod tests {
     #[test]
     fn two_finds_of_one_fork_become_one_fork_where_the_axes_meet() {
         let (mut positions, mut parents) = trunk();
-        let mut add = |p: Point3<f64>, parent: usize| {
-            positions.push(p);
-            parents.push(Some(parent));
-            positions.len() - 1
-        };
+        let mut add = |p, parent| grow(&mut positions, &mut parents, p, parent);
         let first = add(Point3::new(0.0, 0.0, 0.32), 15);
         let second = add(Point3::new(0.0, 0.0, 0.345), first);
         let arm = |azimuth: f64, k: usize| {
@@ -363,11 +361,7 @@ mod tests {
             }
         }
         let (skeleton, keep) = relocated(positions, parents);
-        assert!(
-            (skeleton.positions[first] - Point3::new(0.0, 0.0, 0.3)).norm() < 1e-6,
-            "{:?}",
-            skeleton.positions[first]
-        );
+        assert_at(&skeleton, first, Point3::new(0.0, 0.0, 0.3));
         assert!(!keep[second] && !keep[15] && keep[first] && keep[14]);
         assert_eq!(skeleton.parents[first], Some(14));
         for a in arm_nodes {
