@@ -16,7 +16,7 @@ use nalgebra::{Point3, Vector2, Vector3};
 use petgraph::unionfind::UnionFind;
 
 use crate::scan::circle_fit::{Circle, fit_circle};
-use crate::scan::neighbours::Graph;
+use crate::scan::neighbours::{Graph, compact_labels};
 
 /// One cross-section of a branch: its points, the piece it grows from.
 #[derive(Debug, Clone)]
@@ -125,17 +125,18 @@ fn level_pieces(g: &Geodesic, level: &[usize], link: f64) -> Vec<usize> {
             glue.union(l, other);
         }
     }
-    let mut ids = vec![usize::MAX; count];
-    let mut next = 0;
-    labels
-        .iter()
-        .map(|&l| {
-            let root = glue.find_mut(l);
-            if ids[root] == usize::MAX {
-                ids[root] = next;
-                next += 1;
+    compact_labels(&mut glue, labels)
+}
+
+/// Each point's level set `bin` (m) wide; `usize::MAX` where unreached.
+fn levels(dist: &[f64], bin: f64) -> Vec<usize> {
+    dist.iter()
+        .map(|d| {
+            if d.is_finite() {
+                (d / bin) as usize
+            } else {
+                usize::MAX
             }
-            ids[root]
         })
         .collect()
 }
@@ -150,16 +151,7 @@ pub fn pieces(g: &Geodesic, bin: f64) -> Vec<Piece> {
         dist,
         pred,
     } = *g;
-    let level: Vec<usize> = dist
-        .iter()
-        .map(|d| {
-            if d.is_finite() {
-                (d / bin) as usize
-            } else {
-                usize::MAX
-            }
-        })
-        .collect();
+    let level = levels(dist, bin);
     let labels = level_pieces(g, &level, PIECE_LINK * bin);
     let count = labels.iter().max().map_or(0, |m| m + 1);
     let mut members = vec![Vec::new(); count];
@@ -354,7 +346,7 @@ mod tests {
             dist: &dist,
             pred: &pred,
         };
-        let level: Vec<usize> = dist.iter().map(|d| (d / bin) as usize).collect();
+        let level = levels(&dist, bin);
         let labels = level_pieces(&g, &level, PIECE_LINK * bin);
         (level, labels)
     }

@@ -145,18 +145,7 @@ impl Graph {
                 }
             }
         }
-        let mut label = vec![usize::MAX; n];
-        let mut next = 0;
-        let mut labels = Vec::with_capacity(n);
-        for i in 0..n {
-            let root = sets.find_mut(i);
-            if label[root] == usize::MAX {
-                label[root] = next;
-                next += 1;
-            }
-            labels.push(label[root]);
-        }
-        labels
+        compact_labels(&mut sets, 0..n)
     }
 
     /// Shortest path lengths from the nearest of `sources` (Dijkstra),
@@ -213,6 +202,30 @@ impl PartialOrd for Visit {
     fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
         Some(self.cmp(other))
     }
+}
+
+/// The set of each of `items` in `sets`, numbered 0.. by first
+/// appearance.
+pub fn compact_labels(
+    sets: &mut UnionFind<usize>,
+    items: impl IntoIterator<Item = usize>,
+) -> Vec<usize> {
+    let mut label: Vec<usize> = Vec::new();
+    let mut next = 0;
+    items
+        .into_iter()
+        .map(|i| {
+            let root = sets.find_mut(i);
+            if root >= label.len() {
+                label.resize(root + 1, usize::MAX);
+            }
+            if label[root] == usize::MAX {
+                label[root] = next;
+                next += 1;
+            }
+            label[root]
+        })
+        .collect()
 }
 
 /// Closest distance between two parts' points (m).
