@@ -6,7 +6,7 @@ use nalgebra::{Point3, Vector3};
 
 use crate::scan::forks::relocate_forks;
 use crate::scan::levels::{Geodesic, Piece, cross_section, pieces};
-use crate::scan::skeleton::Skeleton;
+use crate::scan::skeleton::{Chain, Skeleton};
 use crate::scan::viewpoint::{
     Sensor, Sighting, move_off_near_side, near_side_shift, one_sided_viewpoint,
 };
@@ -321,6 +321,10 @@ fn prune(mut pieces: Vec<Piece>, length: f64) -> (Vec<Piece>, usize) {
 /// parent branch to borrow from.
 const UNSEEN_RADIUS: f64 = 0.005;
 
+/// A branch caps its children's radii only when at least this many of its
+/// cross-sections were fitted.
+const CAP_FITS: usize = 3;
+
 /// Each branch's radii: the median of the fitted radii within two pieces
 /// either side; where none was fitted, the branch's median, else the
 /// parent branch's radius where it starts. A branch is never thicker than
@@ -335,14 +339,33 @@ fn smooth_radii(skeleton: &mut Skeleton, fitted: &[Option<f64>]) -> usize {
     let mut radius = vec![f64::NAN; n];
     // The root's radius: its own fit or its first chain's.
     let mut borrowed = 0;
-    for chain in &chains {
+    let fits = |c: &Chain| {
+        c.nodes[1..]
+            .iter()
+            .filter(|&&k| fitted[k].is_some())
+            .count()
+    };
+    // The cap each chain was given, for its children to inherit.
+    let mut cap_of: Vec<Option<f64>> = vec![None; chains.len()];
+    for (c, chain) in chains.iter().enumerate() {
         let nodes = &chain.nodes[1..];
         // The parent branch's radius where the chain starts: none for a
         // branch from the root (see above) or a parent not yet given one.
-        let start_radius = Some(chain.nodes[0])
-            .filter(|&s| s != 0)
-            .map(|s| radius[s])
-            .filter(|r| !r.is_nan());
+        // A parent of fewer than CAP_FITS fitted cross-sections does not
+        // cap a child better seen than itself (the child inherits the
+        // parent's own cap): a few arcs of a thick trunk's base, parted by
+        // shadows, capped the whole trunk at an arc's radius (sylva-rs's
+        // one-view conifer, 55 mm -> 6 mm).
+        let start_radius = match chain.parent {
+            Some(pc) if fits(&chains[pc]) < CAP_FITS && fits(chain) > fits(&chains[pc]) => {
+                cap_of[pc]
+            }
+            _ => Some(chain.nodes[0])
+                .filter(|&s| s != 0)
+                .map(|s| radius[s])
+                .filter(|r| !r.is_nan()),
+        };
+        cap_of[c] = start_radius;
         let values: Vec<Option<f64>> = nodes.iter().map(|&k| fitted[k]).collect();
         let mut known: Vec<f64> = values.iter().flatten().copied().collect();
         known.sort_by(f64::total_cmp);
@@ -435,5 +458,56 @@ mod tests {
                 "the twig is capped by the trunk"
             );
         }
+    }
+
+    /// Root → two arcs of the trunk's base (6 mm fits) → a fork: the trunk
+    /// on above it (six 50 mm fits) and a twig (one 10 mm fit). A branch
+    /// of two fits does not cap the better-seen trunk (sylva-rs's one-view
+    /// conifer had its 55 mm trunk capped at 6 mm so), but still caps the
+    /// twig, seen less than itself; a twig off the trunk fitted thicker
+    /// than it is capped by it.
+    #[test]
+    fn a_branch_of_few_fits_caps_only_branches_seen_less() {
+        let z = |h: f64| Point3::new(0.0, 0.0, h);
+        let mut positions = vec![z(0.0), z(0.01), z(0.02)];
+        let mut parents = vec![None, Some(0), Some(1)];
+        let mut fitted = vec![Some(0.05), Some(0.006), Some(0.006)];
+        for k in 0..6 {
+            positions.push(z(0.04 + 0.02 * k as f64));
+            parents.push(Some(if k == 0 { 2 } else { 2 + k }));
+            fitted.push(Some(0.05));
+        }
+        let twig = positions.len();
+        positions.push(Point3::new(0.05, 0.0, 0.03));
+        parents.push(Some(2));
+        fitted.push(Some(0.01));
+        let off_trunk = positions.len();
+        positions.push(Point3::new(0.05, 0.0, 0.1));
+        parents.push(Some(5));
+        fitted.push(Some(0.06));
+        let n = positions.len();
+        let mut skeleton = Skeleton {
+            positions,
+            parents,
+            radius: vec![0.0; n],
+        };
+        assert_eq!(smooth_radii(&mut skeleton, &fitted), 0);
+        for j in 3..9 {
+            assert!(
+                (skeleton.radius[j] - 0.05).abs() < 1e-12,
+                "trunk {j}: {:?}",
+                skeleton.radius
+            );
+        }
+        assert!(
+            (skeleton.radius[twig] - 0.006).abs() < 1e-12,
+            "{:?}",
+            skeleton.radius
+        );
+        assert!(
+            (skeleton.radius[off_trunk] - 0.05).abs() < 1e-12,
+            "{:?}",
+            skeleton.radius
+        );
     }
 }

@@ -101,6 +101,23 @@ fn level_pieces(g: &Geodesic, level: &[usize], link: f64) -> Vec<usize> {
             glue.union(l, other);
         }
     }
+    // The first level is the trunk's base (the sources are its bottom
+    // slice): one piece, however its ring is parted. Seen from one side,
+    // a thick trunk's base ring is arcs parted by the shadows of what
+    // stands in front, and each arc grew a branch of its own from the
+    // root, capping the trunk's radius at an arc's (sylva-rs's one-view
+    // conifer: a 55 mm trunk given 5.8 mm).
+    let mut base = None;
+    for (i, &l) in labels.iter().enumerate() {
+        if level[i] == 0 {
+            match base {
+                None => base = Some(l),
+                Some(b) => {
+                    glue.union(b, l);
+                }
+            }
+        }
+    }
     // A part of a few cubes is noise off its branch's surface, and joins
     // the one part it is linked to; linked to two or more, it is a bridge
     // between branches (a laser's mixed returns between two twigs), and
@@ -335,9 +352,18 @@ mod tests {
     /// point to every other within 12 mm (cross-twig links included),
     /// from point 0.
     fn levels_of(points: &[Point3<f64>], bin: f64) -> (Vec<usize>, Vec<usize>) {
+        levels_from(points, bin, &[0])
+    }
+
+    /// As [`levels_of`], from every point of `sources`.
+    fn levels_from(
+        points: &[Point3<f64>],
+        bin: f64,
+        sources: &[usize],
+    ) -> (Vec<usize>, Vec<usize>) {
         let index = PointIndex::new(points);
         let graph = Graph::knn(points, &index, 400, 0.012);
-        let (dist, pred) = graph.shortest_paths(&[0]);
+        let (dist, pred) = graph.shortest_paths(sources);
         let weights = vec![1; points.len()];
         let g = Geodesic {
             points,
@@ -404,5 +430,41 @@ mod tests {
             here.dedup();
             assert_eq!(here.len(), 1, "level {l}: {here:?}");
         }
+    }
+
+    /// A 50 mm trunk seen from one side, its bottom ring parted into three
+    /// arcs by shadows 2 cm wide: the first level (the trunk's base, from
+    /// its bottom slice) is one piece, not one per arc.
+    #[test]
+    fn a_trunk_base_parted_into_arcs_is_one_piece() {
+        let mut points = Vec::new();
+        for k in 0..=20 {
+            let z = k as f64 * 0.002;
+            for j in 0..60 {
+                let a = j as f64 * std::f64::consts::PI / 60.0;
+                let shadow = [0.9, 2.0].iter().any(|&s| (a - s).abs() < 0.2);
+                if !shadow {
+                    points.push(Point3::new(0.05 * a.cos(), 0.05 * a.sin(), z));
+                }
+            }
+        }
+        let sources: Vec<usize> = (0..points.len()).filter(|&i| points[i].z < 1e-9).collect();
+        let (level, labels) = levels_from(&points, 0.016, &sources);
+        let mut base: Vec<usize> = (0..points.len())
+            .filter(|&i| level[i] == 0)
+            .map(|i| labels[i])
+            .collect();
+        base.sort_unstable();
+        base.dedup();
+        assert_eq!(base.len(), 1, "{base:?}");
+        // Above it each arc is still a piece of its own (the siblings'
+        // overlap merges them later, where it can).
+        let mut above: Vec<usize> = (0..points.len())
+            .filter(|&i| level[i] == 1)
+            .map(|i| labels[i])
+            .collect();
+        above.sort_unstable();
+        above.dedup();
+        assert_eq!(above.len(), 3, "{above:?}");
     }
 }
