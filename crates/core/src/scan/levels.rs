@@ -355,6 +355,17 @@ mod tests {
         levels_from(points, bin, &[0])
     }
 
+    /// The piece labels found in level set `l`, each once.
+    fn labels_at(level: &[usize], labels: &[usize], l: usize) -> Vec<usize> {
+        let mut here: Vec<usize> = (0..level.len())
+            .filter(|&i| level[i] == l)
+            .map(|i| labels[i])
+            .collect();
+        here.sort_unstable();
+        here.dedup();
+        here
+    }
+
     /// As [`levels_of`], from every point of `sources`.
     fn levels_from(
         points: &[Point3<f64>],
@@ -422,12 +433,7 @@ mod tests {
         let (level, labels) = levels_of(&points, 0.016);
         assert!(level.iter().all(|&l| l < 20), "every point reached");
         for l in 0..=12 {
-            let mut here: Vec<usize> = (0..points.len())
-                .filter(|&i| level[i] == l)
-                .map(|i| labels[i])
-                .collect();
-            here.sort_unstable();
-            here.dedup();
+            let here = labels_at(&level, &labels, l);
             assert_eq!(here.len(), 1, "level {l}: {here:?}");
         }
     }
@@ -450,21 +456,11 @@ mod tests {
         }
         let sources: Vec<usize> = (0..points.len()).filter(|&i| points[i].z < 1e-9).collect();
         let (level, labels) = levels_from(&points, 0.016, &sources);
-        let mut base: Vec<usize> = (0..points.len())
-            .filter(|&i| level[i] == 0)
-            .map(|i| labels[i])
-            .collect();
-        base.sort_unstable();
-        base.dedup();
+        let base = labels_at(&level, &labels, 0);
         assert_eq!(base.len(), 1, "{base:?}");
         // Above it each arc is still a piece of its own (the siblings'
         // overlap merges them later, where it can).
-        let mut above: Vec<usize> = (0..points.len())
-            .filter(|&i| level[i] == 1)
-            .map(|i| labels[i])
-            .collect();
-        above.sort_unstable();
-        above.dedup();
+        let above = labels_at(&level, &labels, 1);
         assert_eq!(above.len(), 3, "{above:?}");
     }
 }
