@@ -6,7 +6,7 @@ use nalgebra::{Point3, Vector3};
 
 use crate::scan::forks::relocate_forks;
 use crate::scan::levels::{Geodesic, Piece, cross_section, pieces};
-use crate::scan::skeleton::{Chain, Skeleton};
+use crate::scan::skeleton::Skeleton;
 use crate::scan::viewpoint::{
     Sensor, Sighting, move_off_near_side, near_side_shift, one_sided_viewpoint,
 };
@@ -339,12 +339,16 @@ fn smooth_radii(skeleton: &mut Skeleton, fitted: &[Option<f64>]) -> usize {
     let mut radius = vec![f64::NAN; n];
     // The root's radius: its own fit or its first chain's.
     let mut borrowed = 0;
-    let fits = |c: &Chain| {
-        c.nodes[1..]
-            .iter()
-            .filter(|&&k| fitted[k].is_some())
-            .count()
-    };
+    // Each chain's fitted cross-sections.
+    let fits: Vec<usize> = chains
+        .iter()
+        .map(|c| {
+            c.nodes[1..]
+                .iter()
+                .filter(|&&k| fitted[k].is_some())
+                .count()
+        })
+        .collect();
     // The cap each chain was given, for its children to inherit.
     let mut cap_of: Vec<Option<f64>> = vec![None; chains.len()];
     for (c, chain) in chains.iter().enumerate() {
@@ -357,9 +361,7 @@ fn smooth_radii(skeleton: &mut Skeleton, fitted: &[Option<f64>]) -> usize {
         // shadows, capped the whole trunk at an arc's radius (sylva-rs's
         // one-view conifer, 55 mm -> 6 mm).
         let start_radius = match chain.parent {
-            Some(pc) if fits(&chains[pc]) < CAP_FITS && fits(chain) > fits(&chains[pc]) => {
-                cap_of[pc]
-            }
+            Some(pc) if fits[pc] < CAP_FITS && fits[c] > fits[pc] => cap_of[pc],
             _ => Some(chain.nodes[0])
                 .filter(|&s| s != 0)
                 .map(|s| radius[s])

@@ -110,12 +110,7 @@ fn level_pieces(g: &Geodesic, level: &[usize], link: f64) -> Vec<usize> {
     let mut base = None;
     for (i, &l) in labels.iter().enumerate() {
         if level[i] == 0 {
-            match base {
-                None => base = Some(l),
-                Some(b) => {
-                    glue.union(b, l);
-                }
-            }
+            glue.union(*base.get_or_insert(l), l);
         }
     }
     // A part of a few cubes is noise off its branch's surface, and joins

@@ -81,10 +81,7 @@ fn joints(fine: &Skeleton, nodes: &[usize], spacing: f64) -> Vec<usize> {
         let parts = (len / spacing).ceil() as usize;
         for p in 1..parts {
             let target = arc[a] + len * p as f64 / parts as f64;
-            let x = (a..=b)
-                .min_by(|&x, &y| (arc[x] - target).abs().total_cmp(&(arc[y] - target).abs()))
-                .unwrap_or(a);
-            keep[x] = true;
+            keep[nearest_on_arc(arc.as_slice(), a..=b, target).unwrap_or(a)] = true;
         }
     }
     let kept: Vec<usize> = (0..nodes.len()).filter(|&x| keep[x]).collect();
@@ -166,15 +163,18 @@ fn taper_split(
     if change <= TAPER_ABS.max(TAPER_REL * mr) {
         return;
     }
-    let middle = arc[a] + 0.5 * len;
-    let Some(m) =
-        (a + 1..b).min_by(|&x, &y| (arc[x] - middle).abs().total_cmp(&(arc[y] - middle).abs()))
-    else {
+    let Some(m) = nearest_on_arc(arc, a + 1..b, arc[a] + 0.5 * len) else {
         return;
     };
     keep[m] = true;
     taper_split(fine, nodes, arc, a, m, keep);
     taper_split(fine, nodes, arc, m, b, keep);
+}
+
+/// Of the chain indices `range`, the one whose arc length is nearest
+/// `target`; `None` for an empty range.
+fn nearest_on_arc(arc: &[f64], range: impl Iterator<Item = usize>, target: f64) -> Option<usize> {
+    range.min_by(|&x, &y| (arc[x] - target).abs().total_cmp(&(arc[y] - target).abs()))
 }
 
 /// Smallest turn (rad) between the straight stretches on either side of a
