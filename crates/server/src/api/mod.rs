@@ -59,6 +59,7 @@ pub mod validate;
 pub mod viewer;
 
 use axum::Router;
+use axum::body::Bytes;
 use axum::extract::{DefaultBodyLimit, State};
 use axum::response::IntoResponse;
 use axum::routing::{get, post};
@@ -72,10 +73,13 @@ pub fn router(state: AppState) -> Router {
     let mut routes = Router::new();
     if state.limits.fault_injection {
         // For tests of what a bug does to the server: a handler that
-        // panics, and one whose blocking job panics.
+        // panics, and one whose blocking job panics. Both read the body
+        // first, as every real handler does: hyper closes a keep-alive
+        // connection whose request body was left unread, and a client
+        // reusing it would see the peer disconnect, not the 500.
         routes = routes.route("/debug/panic", post(injected_panic)).route(
             "/debug/panic-worker",
-            post(|State(state): State<AppState>| async move {
+            post(|State(state): State<AppState>, _body: Bytes| async move {
                 state
                     .run_blocking("/debug/panic-worker", || -> Result<(), ApiError> {
                         panic!("injected fault in a worker")
@@ -137,7 +141,7 @@ pub fn router(state: AppState) -> Router {
         .with_state(state)
 }
 
-async fn injected_panic() -> ApiError {
+async fn injected_panic(_body: Bytes) -> ApiError {
     panic!("injected fault")
 }
 
