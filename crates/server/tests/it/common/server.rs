@@ -58,9 +58,20 @@ pub struct Server {
 /// A client that hands back every status (4xx and 5xx are answers here,
 /// not errors) and gives up after 30 s.
 pub fn client() -> ureq::Agent {
+    agent(10)
+}
+
+/// An agent keeping at most `pooled` idle connections. A test's own agent
+/// keeps none: a server may close a keep-alive connection after an answer
+/// it gave before reading the request body (a 415, a panic), and a request
+/// sent on that connection would fail with "peer disconnected" depending on
+/// timing. Each request on its own connection tests what the test means to.
+fn agent(pooled: usize) -> ureq::Agent {
     ureq::Agent::config_builder()
         .http_status_as_error(false)
         .timeout_global(Some(Duration::from_secs(30)))
+        .max_idle_connections(pooled)
+        .max_idle_connections_per_host(pooled)
         .build()
         .into()
 }
@@ -88,7 +99,7 @@ impl Server {
         Self {
             child,
             addr,
-            agent: client(),
+            agent: agent(0),
         }
     }
 
