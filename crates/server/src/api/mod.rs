@@ -25,10 +25,12 @@
 //! blocking pool),
 //! [`error`] (the JSON error and its codes), [`json`] and [`validate`]
 //! (request parsing and checks), [`metrics`], [`request_log`], [`shutdown`]
-//! and [`drain`] (graceful shutdown), [`robot_planners`] (one planner per
+//! and [`drain`] (graceful shutdown), [`connection`] (which answers end
+//! their connection), [`robot_planners`] (one planner per
 //! arm), [`server`] (the binary's flags and start-up), [`health_check`]
 //! (the container's health check).
 
+pub mod connection;
 pub mod domain;
 pub mod drain;
 pub mod error;
@@ -131,6 +133,10 @@ pub fn router(state: AppState) -> Router {
             panic_response,
         ))
         .layer(DefaultBodyLimit::max(body_limit))
+        // After the panic layer, so that a panic's 500 says it too.
+        .layer(axum::middleware::from_fn(
+            connection::close_after_error_with_body,
+        ))
         // Every request gets an id (a client's own `x-request-id` is kept),
         // echoed in the answer and named in its log lines.
         .layer(tower_http::request_id::PropagateRequestIdLayer::x_request_id())

@@ -159,11 +159,23 @@ fn every_error_class_has_its_status_and_shape() {
         error["message"].as_str().unwrap().contains("colour"),
         "{error}"
     );
-    // 415: not JSON.
-    let (status, body) = server.send("POST", "/v1/simulate", "text/plain", b"{}");
-    assert_eq!(
-        (status, body["error"]["code"].as_str()),
-        (415, Some("unsupported_media_type"))
+    // 415: not JSON. Answered before the body is read, so the answer says
+    // the connection ends (hyper closes it): a pooled client reconnects
+    // instead of sending its next request into a closed socket.
+    let (status, head, body) = server.request("POST", "/v1/simulate", "text/plain", b"{}");
+    assert_eq!(status, 415, "{body}");
+    assert!(body.contains("unsupported_media_type"), "{body}");
+    assert!(head.contains("connection: close"), "{head}");
+    let (status, head, _) = server.request(
+        "POST",
+        "/v1/simulate",
+        "application/json",
+        &serde_json::to_vec(&simulate_body(tree_json())).unwrap(),
+    );
+    assert_eq!(status, 200);
+    assert!(
+        !head.contains("connection: close"),
+        "a good answer keeps it: {head}"
     );
     // 413: a body over 1 MiB, a tree over 512 nodes.
     let (status, _, body) = server.raw(
