@@ -56,9 +56,10 @@ pub struct PushFacts {
     pub depth: usize,
     /// Whether the simulated push stays within [`DEFAULT_MAX_STRESS`] at
     /// every branch. The paper's push distribution (5-12 cm at any node)
-    /// asks a large tree for pushes no arm should make: 10 cm at the foot
-    /// of a 5 cm leader tilts a 500-node tree's crown by half a metre or
-    /// more, and the wood would break first.
+    /// asks a large tree for pushes no arm should make: 10 cm near the foot
+    /// of a 5 cm leader moves a 200-500-node tree's crown by tens of
+    /// centimetres to a metre (`eval sizes`, No Action by depth), and the
+    /// wood would break first.
     pub within_stress: bool,
 }
 
