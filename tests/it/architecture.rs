@@ -264,7 +264,8 @@ fn no_import_circle_between_files() {
 /// items, one through a re-export.
 #[test]
 fn the_import_checker_sees_a_circle() {
-    let dir = std::env::temp_dir().join(format!("treemanip-imports-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("treemanip-imports-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(dir.join("a")).unwrap();
     std::fs::write(

@@ -29,7 +29,8 @@ fn health_check_fails_when_nothing_listens() {
 /// that says how to get an engine. CI builds and runs this test both ways.
 #[test]
 fn a_broken_onnx_runtime_library_falls_back_to_tract_or_says_how_to_get_an_engine() {
-    let dir = std::env::temp_dir().join(format!("treemanip-no-ort-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("treemanip-no-ort-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let library = dir.join("libonnxruntime.so");
     std::fs::write(&library, b"not a shared library").unwrap();

@@ -7,8 +7,12 @@
 use std::path::PathBuf;
 use std::process::Command;
 
+/// A fresh scratch directory for one test process, under cargo's own
+/// scratch space for integration tests (`target/tmp`), not the system's
+/// temporary directory, which runs of the suite would otherwise fill.
 pub fn temp_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("treemanip-{tag}-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("treemanip-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir

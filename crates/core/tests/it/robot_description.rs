@@ -88,7 +88,8 @@ fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
 
 #[test]
 fn imports_round_trip_and_bad_configurations_are_named() {
-    let dir = std::env::temp_dir().join(format!("treemanip-description-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("treemanip-description-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     write(
         &dir,

@@ -45,7 +45,8 @@ fn yourdfpy_reads_what_we_wrote() {
         println!("skipped: {reason}");
         return;
     }
-    let dir = std::env::temp_dir().join(format!("treemanip-yourdfpy-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("treemanip-yourdfpy-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let script = concat!(
         env!("CARGO_MANIFEST_DIR"),
