@@ -264,9 +264,7 @@ fn no_import_circle_between_files() {
 /// items, one through a re-export.
 #[test]
 fn the_import_checker_sees_a_circle() {
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("treemanip-imports-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = crate::common::temp_dir("imports");
     std::fs::create_dir_all(dir.join("a")).unwrap();
     std::fs::write(
         dir.join("lib.rs"),

@@ -80,9 +80,7 @@ fn an_arm_of_four_joints_is_refused_with_why() {
         ));
     }
     urdf.push_str("</robot>");
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("treemanip-four-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::temp_dir("four");
     let path = dir.join("four.urdf");
     std::fs::write(&path, urdf).unwrap();
     let err = load(&spec(&format!("four={}", path.display())), &[]).unwrap_err();

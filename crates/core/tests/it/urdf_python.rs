@@ -45,9 +45,7 @@ fn yourdfpy_reads_what_we_wrote() {
         println!("skipped: {reason}");
         return;
     }
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("treemanip-yourdfpy-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::temp_dir("yourdfpy");
     let script = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../tests/python/load_tree_urdf.py"
