@@ -63,23 +63,6 @@ pub struct PushFacts {
     pub within_stress: bool,
 }
 
-/// Each episode's [`PushFacts`] (the push simulated again for its loads).
-pub fn push_facts(data: &SizeData) -> Vec<PushFacts> {
-    data.episodes
-        .iter()
-        .map(|e| {
-            let tree = data.tree_of(e);
-            let within_stress = simulate(tree, &e.push, &SimConfig::default())
-                .map(|out| PushLoads::of_outcome(tree, &out).peak_stress <= DEFAULT_MAX_STRESS)
-                .unwrap_or(false);
-            PushFacts {
-                depth: tree.depth(e.push.node),
-                within_stress,
-            }
-        })
-        .collect()
-}
-
 /// Bands of the pushed node's depth (joints from the root, both ends
 /// included). A push near the root of a large tree carries the most tree:
 /// a turn's error there moves a metre or more of branches.
@@ -299,24 +282,33 @@ fn baseline_row(
     scored(method, shape, data, facts, &errors)
 }
 
-/// The simulator's time per push on the test set's episodes (one thread).
-pub fn sim_row(shape: TreeShape, data: &SizeData) -> SimRow {
-    let mut times = Vec::new();
-    let mut path = 0usize;
+/// Each episode's push simulated once (one thread): the simulator's time
+/// per push, and each push's [`PushFacts`] from its outcome (the loads
+/// read outside the timing).
+pub fn simulated(shape: TreeShape, data: &SizeData) -> (SimRow, Vec<PushFacts>) {
+    let mut times = Vec::with_capacity(data.episodes.len());
+    let mut facts = Vec::with_capacity(data.episodes.len());
     for e in &data.episodes {
         let tree = data.tree_of(e);
         let started = Instant::now();
-        let _ = simulate(tree, &e.push, &SimConfig::default());
+        let outcome = simulate(tree, &e.push, &SimConfig::default());
         times.push(started.elapsed().as_secs_f64() * 1e3);
-        path += tree.depth(e.push.node);
+        facts.push(PushFacts {
+            depth: tree.depth(e.push.node),
+            within_stress: outcome.is_ok_and(|out| {
+                PushLoads::of_outcome(tree, &out).peak_stress <= DEFAULT_MAX_STRESS
+            }),
+        });
     }
-    SimRow {
+    let path: usize = facts.iter().map(|f| f.depth).sum();
+    let row = SimRow {
         shape,
         n: data.n,
         p50_ms: quantile(&mut times.clone(), 0.5),
         p95_ms: quantile(&mut times, 0.95),
         mean_path: path as f64 / data.episodes.len().max(1) as f64,
-    }
+    };
+    (row, facts)
 }
 
 /// The rows as a Markdown report.

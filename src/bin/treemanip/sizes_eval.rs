@@ -7,7 +7,7 @@ use std::time::Instant;
 use clap::Args;
 use treemanip::eval::learned::Score;
 use treemanip::eval::sizes::{
-    SizeRow, linear_row, model_row, no_action_row, push_facts, sim_row, test_set, to_markdown,
+    SizeRow, linear_row, model_row, no_action_row, simulated, test_set, to_markdown,
 };
 use treemanip::infer::init_backend;
 use treemanip::infer::models::{ServedModel, SessionLayout};
@@ -69,7 +69,7 @@ pub fn eval_sizes(args: EvalSizesArgs) -> anyhow::Result<()> {
                 continue;
             }
             let data = test_set(shape, n, args.trees, args.episodes, args.seed)?;
-            let facts = push_facts(&data);
+            let (sim, facts) = simulated(shape, &data);
             for (label, model) in &models {
                 if let Some(row) = model_row(label, model, shape, &data, &facts, args.timing_runs)?
                 {
@@ -84,7 +84,7 @@ pub fn eval_sizes(args: EvalSizesArgs) -> anyhow::Result<()> {
             }
             rows.push(linear_row(shape, &data, &facts));
             rows.push(no_action_row(shape, &data, &facts));
-            sims.push(sim_row(shape, &data));
+            sims.push(sim);
         }
     }
     std::fs::create_dir_all(&args.out)?;
