@@ -84,6 +84,7 @@ fn made_up_targets(n: usize) -> Targets {
         displacement: (0..128 * n * 3).map(|k| (k % 7) as f32 * 0.01).collect(),
         contact: (0..128).map(|k| 1 + k % (n - 1)).collect(),
         push: (0..128 * 3).map(|k| (k % 5) as f32 * 0.02).collect(),
+        weight: vec![1.0; 128 * n],
     }
 }
 

@@ -319,6 +319,7 @@ fn made_up_targets(padded: &Batch) -> Targets {
             })
             .collect(),
         push: (0..b * 3).map(|k| ((k % 5) as f32 - 2.0) * 0.02).collect(),
+        weight: padded.mask.clone(),
     }
 }
 
@@ -447,4 +448,73 @@ fn a_run_started_from_another_keeps_its_weights_and_takes_its_own_attributes() {
         "the run's own attributes"
     );
     assert!(best.config.edge_attributes.stiffness);
+}
+
+/// `--turn-weight`: a path rotation model's loss weighs each path
+/// branch's squared turn error by its reach (or radius) squared over the
+/// mean square in training, and nothing else: the root's and the side
+/// nodes' rows (never read by the decoder) and the padding weigh 0; a
+/// uniform weight is the mask. A run with it trains.
+#[test]
+fn turn_weights_square_each_path_branchs_reach_over_its_mean() {
+    use treemanip::graph::path::{Encoding, encode_forward_path};
+    use treemanip::nn::train::TurnWeight;
+    use treemanip::nn::train::data::Examples;
+    let tmp = crate::common::temp_dir("train-turn-weight");
+    tiny_dataset(&tmp);
+    let mut examples = Examples::load(&tmp, &[6, 8], None, Encoding::PathRotation).unwrap();
+    let ids: Vec<(usize, usize)> = examples.train.iter().step_by(10).copied().collect();
+    let (plain, uniform) = examples.batch(Task::Forward, &ids);
+    assert_eq!(uniform.weight, plain.mask);
+    for kind in [TurnWeight::Reach, TurnWeight::Radius] {
+        examples.weigh_turns(kind);
+        let (padded, targets) = examples.batch(Task::Forward, &ids);
+        let n = padded.n;
+        let (mut sum, mut rows) = (0.0f64, 0usize);
+        for (g, &id) in ids.iter().enumerate() {
+            let data = &examples.sizes[id.0];
+            let episode = &data.episodes[id.1];
+            let tree = data.tree_of(episode);
+            let graph = encode_forward_path(tree, episode.push.node, &episode.push.vector).unwrap();
+            let reach = graph.turn_reach(tree);
+            let w = &targets.weight[g * n..(g + 1) * n];
+            assert_eq!(w[0], 0.0, "the root's row");
+            assert!(
+                w[graph.path_len..].iter().all(|&v| v == 0.0),
+                "side nodes and padding"
+            );
+            for k in 1..graph.path_len {
+                assert!(w[k] > 0.0);
+                sum += w[k] as f64;
+                rows += 1;
+                if kind == TurnWeight::Reach {
+                    // Rows weigh in proportion to their reach squared.
+                    let ratio = w[k] as f64 / (reach[k] * reach[k]);
+                    let first = w[1] as f64 / (reach[1] * reach[1]);
+                    assert!((ratio / first - 1.0).abs() < 1e-4, "{kind:?} row {k}");
+                }
+            }
+        }
+        // The scale is the mean square over these very rows.
+        assert!(
+            (sum / rows as f64 - 1.0).abs() < 1e-4,
+            "{kind:?}: {}",
+            sum / rows as f64
+        );
+    }
+    let mut config = tiny_config(Task::Forward, Arch::Gnn, &tmp, 2);
+    config.encoding = Encoding::PathRotation;
+    config.turn_weight = TurnWeight::Reach;
+    let (state, reason) = train(config, &tmp.join("reach"), None, &mut |_| {}).unwrap();
+    assert_eq!(reason, StopReason::Finished);
+    assert!(
+        state
+            .history
+            .iter()
+            .all(|e| e.train_loss.is_finite() && e.validation_error.is_finite())
+    );
+    assert_eq!(
+        read_state(&tmp.join("reach")).unwrap().config.turn_weight,
+        TurnWeight::Reach
+    );
 }

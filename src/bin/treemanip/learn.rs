@@ -126,6 +126,12 @@ pub struct TrainArgs {
     /// a group the source used).
     #[arg(long)]
     init_from: Option<PathBuf>,
+    /// `--encoding path_rotation`: what each path branch's squared turn
+    /// error is weighed by: `uniform`, `reach` (how far the turn reaches in
+    /// the training tree) or `radius` (the branch's; by the pipe model, how
+    /// much tree it carries where it grew), each squared over its mean.
+    #[arg(long, value_enum, default_value = "uniform")]
+    turn_weight: treemanip::nn::train::TurnWeight,
 }
 
 pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
@@ -154,6 +160,7 @@ pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {
     config.hidden = args.hidden;
     config.edge_attributes = args.edge_attributes;
     config.encoding = args.encoding;
+    config.turn_weight = args.turn_weight;
     anyhow::ensure!(
         config.encoding == Encoding::Full || (task == Task::Forward && arch == Arch::Gnn),
         "--encoding path and path_rotation are for the GNN forward model"

@@ -8,6 +8,7 @@ use nalgebra::Vector3;
 use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
 
 use crate::dataset::{Episode, SizeData, Split, read_size_file};
 use crate::graph::path::{Encoding, PathOutput, encode_forward_path};
@@ -33,6 +34,29 @@ pub struct Examples {
     /// (size index, episode index) of the examples in use.
     pub train: Vec<(usize, usize)>,
     pub validation: Vec<(usize, usize)>,
+    /// A path rotation model's loss weighs each branch's turn error by the
+    /// square of a length of the branch ([`TurnWeight`]) over this
+    /// reference (m², the training examples' mean of that square;
+    /// [`Examples::weigh_turns`]); absent: every output row weighs the same.
+    pub turn_weight: Option<(TurnWeight, f64)>,
+}
+
+/// What a path rotation model's loss weighs each branch's squared turn
+/// error by (the square of a length, over its mean in training).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum TurnWeight {
+    /// Every turn alike (the squared error in radians).
+    #[default]
+    Uniform,
+    /// The turn's reach in the training tree
+    /// ([`crate::graph::path::PathGraph::turn_reach`]): the squared
+    /// position error the turn causes there.
+    Reach,
+    /// The branch's radius: by the pipe model, a proxy for how much tree
+    /// the branch carries in the tree it grew in, which a crop (cut around
+    /// one path) no longer shows.
+    Radius,
 }
 
 /// Per-axis mean and standard deviation of a 3-vector.
@@ -46,6 +70,11 @@ pub struct Targets {
     pub contact: Vec<usize>,
     /// B × 3 pushes T (policy).
     pub push: Vec<f32>,
+    /// B × N weights of the rows' squared errors (forward model): the
+    /// batch's mask, or with [`Examples::turn_weight`] each path branch's
+    /// squared length over the scale (0 for the root and the side nodes,
+    /// whose rows the decoder never reads).
+    pub weight: Vec<f32>,
 }
 
 impl Targets {
@@ -55,6 +84,7 @@ impl Targets {
             displacement: self.displacement[range.start * n * 3..range.end * n * 3].to_vec(),
             contact: self.contact[range.clone()].to_vec(),
             push: self.push[range.start * 3..range.end * 3].to_vec(),
+            weight: self.weight[range.start * n..range.end * n].to_vec(),
         }
     }
 }
@@ -73,6 +103,7 @@ impl Examples {
             sizes: Vec::new(),
             train: Vec::new(),
             validation: Vec::new(),
+            turn_weight: None,
         };
         for &n in sizes {
             let path = dir.join(Split::Train.file_name(n));
@@ -148,6 +179,45 @@ impl Examples {
             .fold(0.0, f64::max)
     }
 
+    /// Each graph node's length that `weight` squares (m; 0 for the root
+    /// and the side nodes).
+    fn turn_lengths(&self, weight: TurnWeight, id: (usize, usize)) -> Vec<f64> {
+        let (data, episode) = self.episode(id);
+        let tree = data.tree_of(episode);
+        let graph = encode_forward_path(tree, episode.push.node, &episode.push.vector)
+            .expect("dataset episodes are validated when read");
+        match weight {
+            TurnWeight::Uniform => vec![1.0; graph.input.n],
+            TurnWeight::Reach => graph.turn_reach(tree),
+            TurnWeight::Radius => (0..graph.input.n)
+                .map(|k| match k {
+                    k if k > 0 && k < graph.path_len => {
+                        tree.branch(graph.nodes[k]).map_or(0.0, |b| b.radius)
+                    }
+                    _ => 0.0,
+                })
+                .collect(),
+        }
+    }
+
+    /// Weighs a path rotation model's turn errors by `weight` (squared),
+    /// over its mean square over the training examples' path branches
+    /// (every 10th example); [`TurnWeight::Uniform`] weighs every row alike.
+    pub fn weigh_turns(&mut self, weight: TurnWeight) {
+        if weight == TurnWeight::Uniform {
+            self.turn_weight = None;
+            return;
+        }
+        let (sum, count) = self
+            .train
+            .iter()
+            .step_by(10)
+            .flat_map(|&id| self.turn_lengths(weight, id))
+            .filter(|&r| r > 0.0)
+            .fold((0.0, 0usize), |(s, c), r| (s + r * r, c + 1));
+        self.turn_weight = Some((weight, sum / count.max(1) as f64));
+    }
+
     /// A padded batch and its targets.
     pub fn batch(&self, task: Task, ids: &[(usize, usize)]) -> (Batch, Targets) {
         self.batch_rotated(task, ids, &[])
@@ -181,9 +251,17 @@ impl Examples {
             displacement: vec![0.0; ids.len() * n * 3],
             contact: Vec::with_capacity(ids.len()),
             push: Vec::with_capacity(ids.len() * 3),
+            weight: batch.mask.clone(),
         };
         for (k, (&id, rows)) in ids.iter().zip(&rows).enumerate() {
             let (_, episode) = self.episode(id);
+            if let (Some((weight, scale)), Task::Forward) = (self.turn_weight, task) {
+                let w = &mut targets.weight[k * n..(k + 1) * n];
+                w.fill(0.0);
+                for (w, r) in w.iter_mut().zip(self.turn_lengths(weight, id)) {
+                    *w = (r * r / scale) as f32;
+                }
+            }
             targets.displacement[k * n * 3..k * n * 3 + rows.len()].copy_from_slice(rows);
             targets.contact.push(episode.push.node);
             let t: Vector3<f64> = episode.push.vector;

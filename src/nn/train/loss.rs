@@ -46,8 +46,8 @@ pub(super) fn loss(
     match task {
         Task::Forward => {
             let target = tensor(norm(&targets.displacement), [b, n, 3], device);
-            let mask = tensor(batch.mask.clone(), [b, n, 1], device);
-            ((out.vectors - target).square() * mask)
+            let weight = tensor(targets.weight.clone(), [b, n, 1], device);
+            ((out.vectors - target).square() * weight)
                 .sum()
                 .div_scalar(loss_denominator(task, batch) as f32)
         }

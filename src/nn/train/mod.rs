@@ -55,6 +55,7 @@ use self::checkpoint::{
 pub use self::checkpoint::{
     Normalisation, STATE_FILE, TrainState, current_weights, read_best, read_state,
 };
+pub use self::data::TurnWeight;
 use self::data::{Examples, Targets};
 use self::loss::validate;
 use self::modules::{DeviceInput, Outputs, TrainGnn, TrainPointNet, values};
@@ -134,6 +135,11 @@ pub struct TrainConfig {
     /// (fine-tuning), carried over to this run's layout; absent: random.
     #[serde(default)]
     pub init_from: Option<PathBuf>,
+    /// A path rotation model: what each branch's squared turn error is
+    /// weighed by ([`TurnWeight`]; uniform for runs from before the field
+    /// existed).
+    #[serde(default)]
+    pub turn_weight: TurnWeight,
     /// The command line that started the run.
     pub command: String,
 }
@@ -168,6 +174,7 @@ impl TrainConfig {
             encoding: gnn.encoding,
             feature_layout: crate::graph::FEATURE_LAYOUT_VERSION,
             init_from: None,
+            turn_weight: TurnWeight::Uniform,
             command: String::new(),
         }
     }
@@ -301,12 +308,20 @@ pub fn train(
 
 /// The examples a run's configuration names.
 fn examples_of(config: &TrainConfig) -> anyhow::Result<Examples> {
-    Examples::load(
+    let mut examples = Examples::load(
         &config.data,
         &config.sizes,
         config.limit_per_size,
         config.encoding,
-    )
+    )?;
+    if config.turn_weight != TurnWeight::Uniform {
+        anyhow::ensure!(
+            config.encoding == Encoding::PathRotation,
+            "weighing turns is for the path_rotation encoding"
+        );
+        examples.weigh_turns(config.turn_weight);
+    }
+    Ok(examples)
 }
 
 /// [`run`] for the run's architecture.
