@@ -176,9 +176,8 @@ mod tests {
     fn independent_cases_are_read_and_scored_against_their_cylinders() {
         let tree = &test_trees(&[14], 1).unwrap()[0];
         let truth = Skeleton::of_tree(tree);
-        let dir =
-            std::env::temp_dir().join(format!("treemanip-independent-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         let cloud = scan(
             tree,
             &ScanParams {
@@ -205,8 +204,7 @@ mod tests {
                 .to_string(),
         )
         .unwrap();
-        let rows = independent_rows(&dir, &PEERS).unwrap();
-        std::fs::remove_dir_all(&dir).unwrap();
+        let rows = independent_rows(dir, &PEERS).unwrap();
         assert_eq!(rows.len(), 2, "ours and the one peer that answered");
         let (ours, peer) = (&rows[0], &rows[1]);
         assert!(ours.label.starts_with("treemanip") && peer.label.starts_with(PEERS[0].name));
@@ -221,10 +219,10 @@ mod tests {
 
     #[test]
     fn a_folder_without_cases_is_an_error() {
-        let dir = std::env::temp_dir().join(format!("treemanip-no-cases-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let err = independent_rows(&dir, &PEERS).unwrap_err().to_string();
-        std::fs::remove_dir_all(&dir).unwrap();
+        let scratch = tempfile::tempdir().unwrap();
+        let err = independent_rows(scratch.path(), &PEERS)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("scan-independent"), "{err}");
     }
 }

@@ -308,7 +308,8 @@ mod tests {
 
     #[test]
     fn meshes_are_found_through_the_package_path_and_enclosed() {
-        let dir = std::env::temp_dir().join(format!("treemanip-geometry-{}", std::process::id()));
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         let pkg = dir.join("share").join("my_arm").join("meshes");
         std::fs::create_dir_all(&pkg).unwrap();
         // A thin bar 0.4 m long along x.
@@ -373,6 +374,5 @@ mod tests {
             link_geometry(&flipped, None, &[dir.join("share")]).unwrap_err(),
             GeometryError::BadShape { .. }
         ));
-        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -39,7 +39,8 @@ mod tests {
 
     #[test]
     fn a_written_las_reads_back_and_the_limit_holds() {
-        let path = std::env::temp_dir().join(format!("treemanip-las-{}.las", std::process::id()));
+        let scratch = tempfile::tempdir().unwrap();
+        let path = scratch.path().join("cloud.las");
         let points = [(0.5, -1.25, 2.0), (10.125, 3.0, -0.5), (0.0, 0.0, 0.001)];
         {
             let mut writer = las::Writer::from_path(&path, las::Header::default()).unwrap();
@@ -64,6 +65,5 @@ mod tests {
             read(&path, 2),
             Err(FormatError::TooMany { got: 3, max: 2 })
         ));
-        std::fs::remove_file(&path).unwrap();
     }
 }

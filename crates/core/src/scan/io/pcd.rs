@@ -67,7 +67,8 @@ mod tests {
 
     #[test]
     fn ascii_pcd_with_extra_fields_reads_x_y_z() {
-        let path = std::env::temp_dir().join(format!("treemanip-pcd-{}.pcd", std::process::id()));
+        let scratch = tempfile::tempdir().unwrap();
+        let path = scratch.path().join("cloud.pcd");
         std::fs::write(
             &path,
             "# .PCD v0.7\nVERSION 0.7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n7 0.5 1 2\n8 3 4 5.25\n",
@@ -84,6 +85,5 @@ mod tests {
         ));
         std::fs::write(&path, "not a pcd").unwrap();
         assert!(read(&path, 10).is_err());
-        std::fs::remove_file(&path).unwrap();
     }
 }
