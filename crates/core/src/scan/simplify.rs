@@ -5,9 +5,11 @@
 //! otherwise be more than `spacing` apart, and never closer than
 //! [`MIN_JOINT_SPACING`] to the joint before. A joint at a bend goes where
 //! the straight stretches on either side meet ([`corner`]): the fine nodes
-//! round a bend off inside it. A joint also stays where the branch has
-//! tapered ([`taper_split`]): each joint carries one radius for its whole
-//! span, and the simulator's stiffness goes with its fourth power.
+//! round a bend off inside it, and where they round it off over two
+//! joints, the two become one there ([`chamfer`]). A joint also stays
+//! where the branch has tapered ([`taper_split`]): each joint carries one
+//! radius for its whole span, and the simulator's stiffness goes with its
+//! fourth power.
 
 use crate::geometry::principal::principal;
 use crate::scan::skeleton::{Skeleton, point_segment};
@@ -33,20 +35,31 @@ pub fn simplify(fine: &Skeleton, confidence: &[f64], spacing: f64) -> (Skeleton,
         let keep = joints(fine, nodes, spacing);
         let mut prev = coarse[nodes[0]];
         let mut span_start = 1;
-        for (k, &x) in keep.iter().enumerate() {
+        let mut k = 0;
+        while k < keep.len() {
+            let x = keep[k];
+            let before = k.checked_sub(1).map_or(Some(0), |b| keep.get(b).copied());
+            // A joint between two kept ones (not a fork or tip) stands
+            // where the branches on either side meet; two joints that
+            // round one bend off between them become one there.
+            let pair = match (before, keep.get(k + 1), keep.get(k + 2)) {
+                (Some(b), Some(&y), Some(&after)) => {
+                    chamfer(fine, nodes, b, x, y, after).map(|at| (at, y))
+                }
+                _ => None,
+            };
+            let (at, x) = match pair {
+                Some((at, y)) => (Some(at), y),
+                None => match (before, keep.get(k + 1)) {
+                    (Some(b), Some(&after)) => (corner(fine, nodes, b, x, after), x),
+                    _ => (None, x),
+                },
+            };
+            k += if pair.is_some() { 2 } else { 1 };
             let span = &nodes[span_start..=x];
             let mut radii: Vec<f64> = span.iter().map(|&k| fine.radius[k]).collect();
             radii.sort_by(f64::total_cmp);
             let id = out.positions.len();
-            // A joint between two kept ones (not a fork or tip) stands
-            // where the branches on either side meet.
-            let at = match (
-                k.checked_sub(1).map_or(Some(0), |b| keep.get(b).copied()),
-                keep.get(k + 1),
-            ) {
-                (Some(before), Some(&after)) => corner(fine, nodes, before, x, after),
-                _ => None,
-            };
             out.positions.push(at.unwrap_or(fine.positions[nodes[x]]));
             out.parents.push(Some(prev));
             out.radius.push(radii[radii.len() / 2]);
@@ -182,6 +195,9 @@ fn nearest_on_arc(arc: &[f64], range: impl Iterator<Item = usize>, target: f64) 
 const CORNER_MIN_TURN: f64 = 0.2;
 /// Farthest (m) a joint is moved to where its stretches meet.
 const CORNER_MAX_SHIFT: f64 = 0.03;
+/// Two joints round one bend off ([`chamfer`]) only between stretches at
+/// least this many times longer than the span between them.
+const CHAMFER_SIDES: f64 = 2.0;
 
 /// Where the stretches of fine nodes before and after joint `x` (chain
 /// indices `before < x < after`, the joints on either side) meet: the
@@ -190,7 +206,7 @@ const CORNER_MAX_SHIFT: f64 = 0.03;
 /// sections are cut obliquely, so the fine nodes round the corner off
 /// inside it (on the generator's trees by 1-2 cm on 5 mm twigs); `None`
 /// where a stretch is too short to fit, the turn is slight or the meeting
-/// point far.
+/// point is more than [`CORNER_MAX_SHIFT`] away.
 fn corner(
     fine: &Skeleton,
     nodes: &[usize],
@@ -198,9 +214,48 @@ fn corner(
     x: usize,
     after: usize,
 ) -> Option<nalgebra::Point3<f64>> {
-    let at = fine.positions[nodes[x]];
-    let guard = (2.0 * fine.radius[nodes[x]]).max(0.01);
-    let fit = |range: std::ops::RangeInclusive<usize>| {
+    corner_lines(fine, nodes, before, x, x, after).map(|(meet, _)| meet)
+}
+
+/// Two joints `x < y` that round one bend off between them (the
+/// Douglas-Peucker joints where a rounded corner starts and ends: on the
+/// generator's 5 mm twigs 2.5-3 cm apart, the true corner 1-2 cm outside
+/// them), where the straight stretches before `x` and after `y` meet;
+/// `None` unless they meet near one of them and both stretches are at
+/// least [`CHAMFER_SIDES`] times as long as the span between the joints.
+/// A branch curving evenly has its Douglas-Peucker joints about evenly
+/// spaced, and keeps them: merging two of them would put the joint where
+/// the chords' lines meet, outside the curve.
+fn chamfer(
+    fine: &Skeleton,
+    nodes: &[usize],
+    before: usize,
+    x: usize,
+    y: usize,
+    after: usize,
+) -> Option<nalgebra::Point3<f64>> {
+    let (meet, long_sides) = corner_lines(fine, nodes, before, x, y, after)?;
+    long_sides.then_some(meet)
+}
+
+/// Where the stretches before joint `x` and after joint `y` (`before < x
+/// ≤ y < after`) meet, as [`corner`] finds it for one joint, each
+/// stretch's nodes within two radii of its joint left out; `None` also
+/// where the meeting point is more than [`CORNER_MAX_SHIFT`] from the
+/// nearer joint or the joints lie more than twice that apart. With it,
+/// whether both stretches are at least [`CHAMFER_SIDES`] times as long as
+/// the span between the joints.
+fn corner_lines(
+    fine: &Skeleton,
+    nodes: &[usize],
+    before: usize,
+    x: usize,
+    y: usize,
+    after: usize,
+) -> Option<(nalgebra::Point3<f64>, bool)> {
+    let (px, py) = (fine.positions[nodes[x]], fine.positions[nodes[y]]);
+    let guard = |j: usize| (2.0 * fine.radius[nodes[j]]).max(0.01);
+    let fit = |range: std::ops::RangeInclusive<usize>, at: nalgebra::Point3<f64>, guard: f64| {
         let pts: Vec<nalgebra::Point3<f64>> = range
             .map(|i| fine.positions[nodes[i]])
             .filter(|p| (p - at).norm() > guard)
@@ -211,8 +266,8 @@ fn corner(
         let p = principal(&pts);
         Some((p.mean, p.axes[0]))
     };
-    let (c1, d1) = fit(before..=x)?;
-    let (c2, d2) = fit(x..=after)?;
+    let (c1, d1) = fit(before..=x, px, guard(x))?;
+    let (c2, d2) = fit(y..=after, py, guard(y))?;
     let cos = d1.dot(&d2).abs();
     if cos > CORNER_MIN_TURN.cos() {
         return None;
@@ -224,7 +279,23 @@ fn corner(
     let s = (b * e - d) / denom;
     let t = (e - b * d) / denom;
     let meet = nalgebra::center(&(c1 + d1 * s), &(c2 + d2 * t));
-    ((meet - at).norm() <= CORNER_MAX_SHIFT).then_some(meet)
+    // Two joints are one bend when they lie within twice the largest
+    // shift of each other along the branch and the corner is near one.
+    let arc = |a: usize, b: usize| -> f64 {
+        (a..b)
+            .map(|i| (fine.positions[nodes[i + 1]] - fine.positions[nodes[i]]).norm())
+            .sum()
+    };
+    let between = arc(x, y);
+    let near = (meet - px).norm().min((meet - py).norm());
+    let long_sides = arc(before, x).min(arc(y, after)) >= CHAMFER_SIDES * between;
+    (near <= CORNER_MAX_SHIFT && between <= 2.0 * CORNER_MAX_SHIFT).then_some((meet, long_sides))
+}
+
+/// How far (m) a fine node may lie off a straight stretch through it for
+/// the stretch to stay one span: half the radius, at least 3 mm.
+fn dp_tolerance(radius: f64) -> f64 {
+    (0.5 * radius).max(0.003)
 }
 
 fn douglas_peucker(fine: &Skeleton, nodes: &[usize], a: usize, b: usize, keep: &mut [bool]) {
@@ -236,8 +307,7 @@ fn douglas_peucker(fine: &Skeleton, nodes: &[usize], a: usize, b: usize, keep: &
         .map(|x| (x, point_segment(&fine.positions[nodes[x]], &pa, &pb).0))
         .max_by(|p, q| p.1.total_cmp(&q.1))
         .unwrap_or((a, 0.0));
-    let tolerance = (0.5 * fine.radius[nodes[far]]).max(0.003);
-    if dev > tolerance {
+    if dev > dp_tolerance(fine.radius[nodes[far]]) {
         keep[far] = true;
         douglas_peucker(fine, nodes, a, far, keep);
         douglas_peucker(fine, nodes, far, b, keep);
@@ -369,5 +439,51 @@ mod tests {
         }
         let (out, _) = simplify(&even, &vec![1.0; n], 0.18);
         assert_eq!(out.len(), 3, "{:?}", out.positions);
+    }
+
+    /// A 5 mm twig's bend rounded off into a quarter circle of 3 cm (the
+    /// corner 1.2 cm outside it) keeps two Douglas-Peucker joints on the
+    /// rounding, and the straight stretches on either side meet at the
+    /// corner: one joint goes there, none stays on the rounding. A twig
+    /// curving evenly (a 15 cm radius over 120°) keeps joints on its
+    /// curve: merging two would put one where the chords' lines meet,
+    /// outside it.
+    #[test]
+    fn a_bend_rounded_off_by_two_joints_gets_one_at_the_corner() {
+        let corner = Point3::new(0.0, 0.0, 0.3);
+        let mut positions: Vec<Point3<f64>> = (0..=50)
+            .map(|i| Point3::new(0.0, 0.0, i as f64 * 0.0054))
+            .collect();
+        positions.extend((1..=9).map(|i| {
+            let phi = std::f64::consts::FRAC_PI_2 * i as f64 / 9.0;
+            Point3::new(0.03 - 0.03 * phi.cos(), 0.0, 0.27 + 0.03 * phi.sin())
+        }));
+        positions.extend((1..=50).map(|i| Point3::new(0.03 + i as f64 * 0.005, 0.0, 0.3)));
+        let n = positions.len();
+        let fine = chain(positions, 0.005);
+        let (out, _) = simplify(&fine, &vec![1.0; n], 0.4);
+        let near: Vec<f64> = out
+            .positions
+            .iter()
+            .map(|p| (p - corner).norm())
+            .filter(|&d| d < 0.04)
+            .collect();
+        assert_eq!(near.len(), 1, "{:?}", out.positions);
+        assert!(near[0] < 0.002, "{:?}", out.positions);
+
+        let radius = 0.15;
+        let arc: Vec<Point3<f64>> = (0..=314)
+            .map(|i| {
+                let phi = 2.0 * std::f64::consts::FRAC_PI_3 * i as f64 / 314.0;
+                Point3::new(radius * (1.0 - phi.cos()), 0.0, radius * phi.sin())
+            })
+            .collect();
+        let n = arc.len();
+        let (out, _) = simplify(&chain(arc, 0.005), &vec![1.0; n], 0.4);
+        assert!(out.len() > 4, "{:?}", out.positions);
+        for p in &out.positions {
+            let off = ((p - Point3::new(radius, 0.0, 0.0)).norm() - radius).abs();
+            assert!(off < 0.004, "{off}: {:?}", out.positions);
+        }
     }
 }
