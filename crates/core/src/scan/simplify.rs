@@ -44,7 +44,7 @@ pub fn simplify(fine: &Skeleton, confidence: &[f64], spacing: f64) -> (Skeleton,
             // round one bend off between them become one there.
             let pair = match (before, keep.get(k + 1), keep.get(k + 2)) {
                 (Some(b), Some(&y), Some(&after)) => {
-                    chamfer(fine, nodes, b, x, y, after).map(|at| (at, y))
+                    chamfer(fine, nodes, [b, x, y, after]).map(|at| (at, y))
                 }
                 _ => None,
             };
@@ -214,7 +214,7 @@ fn corner(
     x: usize,
     after: usize,
 ) -> Option<nalgebra::Point3<f64>> {
-    corner_lines(fine, nodes, before, x, x, after).map(|(meet, _)| meet)
+    corner_lines(fine, nodes, [before, x, x, after]).map(|(meet, _)| meet)
 }
 
 /// Two joints `x < y` that round one bend off between them (the
@@ -225,21 +225,15 @@ fn corner(
 /// least [`CHAMFER_SIDES`] times as long as the span between the joints.
 /// A branch curving evenly has its Douglas-Peucker joints about evenly
 /// spaced, and keeps them: merging two of them would put the joint where
-/// the chords' lines meet, outside the curve.
-fn chamfer(
-    fine: &Skeleton,
-    nodes: &[usize],
-    before: usize,
-    x: usize,
-    y: usize,
-    after: usize,
-) -> Option<nalgebra::Point3<f64>> {
-    let (meet, long_sides) = corner_lines(fine, nodes, before, x, y, after)?;
+/// the chords' lines meet, outside the curve. `joints` are chain indices
+/// `[before, x, y, after]`.
+fn chamfer(fine: &Skeleton, nodes: &[usize], joints: [usize; 4]) -> Option<nalgebra::Point3<f64>> {
+    let (meet, long_sides) = corner_lines(fine, nodes, joints)?;
     long_sides.then_some(meet)
 }
 
-/// Where the stretches before joint `x` and after joint `y` (`before < x
-/// ≤ y < after`) meet, as [`corner`] finds it for one joint, each
+/// Where the stretches before joint `x` and after joint `y` (`joints` =
+/// `[before, x, y, after]`, chain indices, `before < x ≤ y < after`) meet, as [`corner`] finds it for one joint, each
 /// stretch's nodes within two radii of its joint left out; `None` also
 /// where the meeting point is more than [`CORNER_MAX_SHIFT`] from the
 /// nearer joint or the joints lie more than twice that apart. With it,
@@ -248,10 +242,7 @@ fn chamfer(
 fn corner_lines(
     fine: &Skeleton,
     nodes: &[usize],
-    before: usize,
-    x: usize,
-    y: usize,
-    after: usize,
+    [before, x, y, after]: [usize; 4],
 ) -> Option<(nalgebra::Point3<f64>, bool)> {
     let (px, py) = (fine.positions[nodes[x]], fine.positions[nodes[y]]);
     let guard = |j: usize| (2.0 * fine.radius[nodes[j]]).max(0.01);
