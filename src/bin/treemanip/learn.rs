@@ -14,8 +14,8 @@ use treemanip::nn::gnn::{Connectivity, EdgeAttributes};
 use treemanip::nn::model::Arch;
 use treemanip::nn::train::data::training_span;
 use treemanip::nn::train::{
-    ResumeOptions, Schedule, StopReason, TrainConfig, TrainEvent, read_best, read_state, resume,
-    train,
+    ResumeOptions, Schedule, StopReason, TrainConfig, TrainEvent, TurnWeight, read_best,
+    read_state, resume, train,
 };
 
 use crate::progress;
@@ -130,8 +130,8 @@ pub struct TrainArgs {
     /// error is weighed by: `uniform`, `reach` (how far the turn reaches in
     /// the training tree) or `radius` (the branch's; by the pipe model, how
     /// much tree it carries where it grew), each squared over its mean.
-    #[arg(long, value_enum, default_value = "uniform")]
-    turn_weight: treemanip::nn::train::TurnWeight,
+    #[arg(long, default_value = "uniform")]
+    turn_weight: TurnWeight,
 }
 
 pub fn train_cmd(args: TrainArgs) -> anyhow::Result<()> {

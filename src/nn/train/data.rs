@@ -43,7 +43,7 @@ pub struct Examples {
 
 /// What a path rotation model's loss weighs each branch's squared turn
 /// error by (the square of a length, over its mean in training).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TurnWeight {
     /// Every turn alike (the squared error in radians).
@@ -57,6 +57,20 @@ pub enum TurnWeight {
     /// the branch carries in the tree it grew in, which a crop (cut around
     /// one path) no longer shows.
     Radius,
+}
+
+impl std::str::FromStr for TurnWeight {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "uniform" => Ok(Self::Uniform),
+            "reach" => Ok(Self::Reach),
+            "radius" => Ok(Self::Radius),
+            _ => Err(format!(
+                "unknown turn weight {s:?} (uniform, reach or radius)"
+            )),
+        }
+    }
 }
 
 /// Per-axis mean and standard deviation of a 3-vector.
