@@ -11,13 +11,14 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::dataset::{Episode, SizeData, Split, read_size_file};
-use crate::graph::path::{Encoding, PathOutput, encode_forward_path};
+use crate::graph::path::{Encoding, PathGraph, PathOutput, encode_forward_path};
 use crate::graph::stats::{Running, StatsBuilder};
 use crate::graph::{
     Batch, FeatureStats, GraphInput, Task, batch, encode_forward, encode_policy, offsets, rotate_xy,
 };
 use crate::model::domain::Span;
 use crate::seed::derive_seed;
+use crate::tree::Tree;
 
 /// Trees whose index in their size file satisfies this are held out for
 /// validation (10 %): validation measures generalisation to unseen trees.
@@ -70,6 +71,26 @@ impl std::str::FromStr for TurnWeight {
                 "unknown turn weight {s:?} (uniform, reach or radius)"
             )),
         }
+    }
+}
+
+/// Each graph node's length that `weight` squares (m; 0 for the root and
+/// the side nodes); `None` for [`TurnWeight::Uniform`], which weighs every
+/// row alike.
+fn turn_lengths(weight: TurnWeight, graph: &PathGraph, tree: &Tree) -> Option<Vec<f64>> {
+    match weight {
+        TurnWeight::Uniform => None,
+        TurnWeight::Reach => Some(graph.turn_reach(tree)),
+        TurnWeight::Radius => Some(
+            (0..graph.input.n)
+                .map(|k| match k {
+                    k if k > 0 && k < graph.path_len => {
+                        tree.branch(graph.nodes[k]).map_or(0.0, |b| b.radius)
+                    }
+                    _ => 0.0,
+                })
+                .collect(),
+        ),
     }
 }
 
@@ -156,6 +177,19 @@ impl Examples {
     /// what it learns: Δp (m) per graph node (empty for the policy). A
     /// path graph is built once for both.
     pub fn example(&self, task: Task, id: (usize, usize)) -> (GraphInput, Vec<f32>) {
+        let (input, rows, _) = self.encoded(task, id, false);
+        (input, rows)
+    }
+
+    /// [`Examples::example`] and, with `weighed` for a path model whose
+    /// turns are weighed ([`Examples::turn_weight`]), each graph node's
+    /// weight, from the same path graph.
+    fn encoded(
+        &self,
+        task: Task,
+        id: (usize, usize),
+        weighed: bool,
+    ) -> (GraphInput, Vec<f32>, Option<Vec<f32>>) {
         let (data, episode) = self.episode(id);
         let tree = data.tree_of(episode);
         let (node, push) = (episode.push.node, &episode.push.vector);
@@ -164,15 +198,24 @@ impl Examples {
             (Task::Policy, _) => (
                 encode_policy(tree, &episode.final_positions).expect(valid),
                 Vec::new(),
+                None,
             ),
             (Task::Forward, Some(output)) => {
                 let graph = encode_forward_path(tree, node, push).expect(valid);
                 let rows = graph.targets(output, tree, &episode.final_positions);
-                (graph.input, rows)
+                let weights = self
+                    .turn_weight
+                    .filter(|_| weighed)
+                    .and_then(|(weight, scale)| {
+                        let lengths = turn_lengths(weight, &graph, tree)?;
+                        Some(lengths.iter().map(|r| (r * r / scale) as f32).collect())
+                    });
+                (graph.input, rows, weights)
             }
             (Task::Forward, None) => (
                 encode_forward(tree, node, push).expect(valid),
                 offsets(&episode.final_positions, tree.positions()),
+                None,
             ),
         }
     }
@@ -193,27 +236,6 @@ impl Examples {
             .fold(0.0, f64::max)
     }
 
-    /// Each graph node's length that `weight` squares (m; 0 for the root
-    /// and the side nodes).
-    fn turn_lengths(&self, weight: TurnWeight, id: (usize, usize)) -> Vec<f64> {
-        let (data, episode) = self.episode(id);
-        let tree = data.tree_of(episode);
-        let graph = encode_forward_path(tree, episode.push.node, &episode.push.vector)
-            .expect("dataset episodes are validated when read");
-        match weight {
-            TurnWeight::Uniform => vec![1.0; graph.input.n],
-            TurnWeight::Reach => graph.turn_reach(tree),
-            TurnWeight::Radius => (0..graph.input.n)
-                .map(|k| match k {
-                    k if k > 0 && k < graph.path_len => {
-                        tree.branch(graph.nodes[k]).map_or(0.0, |b| b.radius)
-                    }
-                    _ => 0.0,
-                })
-                .collect(),
-        }
-    }
-
     /// Weighs a path rotation model's turn errors by `weight` (squared),
     /// over its mean square over the training examples' path branches
     /// (every 10th example); [`TurnWeight::Uniform`] weighs every row alike.
@@ -226,7 +248,13 @@ impl Examples {
             .train
             .iter()
             .step_by(10)
-            .flat_map(|&id| self.turn_lengths(weight, id))
+            .flat_map(|&id| {
+                let (data, episode) = self.episode(id);
+                let tree = data.tree_of(episode);
+                let graph = encode_forward_path(tree, episode.push.node, &episode.push.vector)
+                    .expect("dataset episodes are validated when read");
+                turn_lengths(weight, &graph, tree).unwrap_or_default()
+            })
             .filter(|&r| r > 0.0)
             .fold((0.0, 0usize), |(s, c), r| (s + r * r, c + 1));
         self.turn_weight = Some((weight, sum / count.max(1) as f64));
@@ -248,17 +276,18 @@ impl Examples {
         angles: &[f64],
     ) -> (Batch, Targets) {
         assert!(angles.is_empty() || angles.len() == ids.len());
-        let (graphs, rows): (Vec<GraphInput>, Vec<Vec<f32>>) = ids
-            .iter()
-            .enumerate()
-            .map(|(k, &id)| {
-                let (mut g, rows) = self.example(task, id);
-                if let Some(&angle) = angles.get(k) {
-                    g.rotate_about_vertical(angle);
-                }
-                (g, rows)
-            })
-            .unzip();
+        let mut graphs = Vec::with_capacity(ids.len());
+        let mut rows = Vec::with_capacity(ids.len());
+        let mut weights = Vec::with_capacity(ids.len());
+        for (k, &id) in ids.iter().enumerate() {
+            let (mut g, r, w) = self.encoded(task, id, true);
+            if let Some(&angle) = angles.get(k) {
+                g.rotate_about_vertical(angle);
+            }
+            graphs.push(g);
+            rows.push(r);
+            weights.push(w);
+        }
         let batch = batch(&graphs).expect("non-empty batch of one task");
         let n = batch.n;
         let mut targets = Targets {
@@ -269,12 +298,10 @@ impl Examples {
         };
         for (k, (&id, rows)) in ids.iter().zip(&rows).enumerate() {
             let (_, episode) = self.episode(id);
-            if let (Some((weight, scale)), Task::Forward) = (self.turn_weight, task) {
-                let w = &mut targets.weight[k * n..(k + 1) * n];
-                w.fill(0.0);
-                for (w, r) in w.iter_mut().zip(self.turn_lengths(weight, id)) {
-                    *w = (r * r / scale) as f32;
-                }
+            if let Some(w) = &weights[k] {
+                let row = &mut targets.weight[k * n..(k + 1) * n];
+                row.fill(0.0);
+                row[..w.len()].copy_from_slice(w);
             }
             targets.displacement[k * n * 3..k * n * 3 + rows.len()].copy_from_slice(rows);
             targets.contact.push(episode.push.node);
