@@ -499,7 +499,8 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
         params.sensor,
     );
     warnings.extend(notes);
-    let (skeleton, confidence) = simplify(&fine, &fine_confidence, params.spacing);
+    let (skeleton, confidence) =
+        simplify(&fine, &fine_confidence, params.spacing, seen_from.is_some());
     Ok(Extraction {
         skeleton,
         confidence,
