@@ -4,6 +4,7 @@
 
 use nalgebra::{Point3, Vector3};
 
+use crate::scan::base::base_arcs;
 use crate::scan::forks::relocate_forks;
 use crate::scan::levels::{Geodesic, Piece, cross_section, pieces};
 use crate::scan::skeleton::Skeleton;
@@ -150,7 +151,10 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, up: &Vector3<f64>, sensor: Sensor) 
         parents,
         radius: vec![0.0; n],
     };
-    let keep = relocate_forks(&mut skeleton);
+    let mut keep = relocate_forks(&mut skeleton);
+    if let Some(root_radius) = fitted[0] {
+        base_arcs(&skeleton, root_radius, up, &mut keep);
+    }
     let (skeleton_kept, kept) = compact(&skeleton, &keep);
     skeleton = skeleton_kept;
     let fitted: Vec<Option<f64>> = kept.iter().map(|&k| fitted[k]).collect();

@@ -5,8 +5,8 @@
 //! - [`io`]: reading clouds from PLY, PCD, LAS/LAZ and XYZ files;
 //! - [`voxel`], [`neighbours`]: averaging cubes, the neighbourhood graph,
 //!   components and shortest paths;
-//! - [`circle_fit`], [`levels`], [`fine`], [`forks`], [`viewpoint`],
-//!   [`simplify`]: the steps of [`extract::extract`] (its module
+//! - [`circle_fit`], [`levels`], [`fine`], [`base`], [`forks`],
+//!   [`viewpoint`], [`simplify`]: the steps of [`extract::extract`] (its module
 //!   documentation lists them in order);
 //! - [`skeleton`]: a tree as geometry (positions, parents, radii);
 //! - [`scanner`]: what a camera at K viewpoints would see of a tree;
@@ -15,6 +15,7 @@
 //!
 //! Documentation beside the code: `docs/scans.md`.
 
+pub mod base;
 pub mod circle_fit;
 pub mod cloud;
 pub mod extract;
