@@ -25,7 +25,7 @@ const ARC_HEIGHT: f64 = 2.0;
 /// root keeps at least one child. Nodes already marked are left out.
 pub fn base_arcs(skeleton: &Skeleton, root_radius: f64, up: &Vector3<f64>, keep: &mut [bool]) {
     let n = skeleton.len();
-    if n < 2 || !(root_radius > 0.0) {
+    if n < 2 || root_radius.is_nan() || root_radius <= 0.0 {
         return;
     }
     let mut children = vec![Vec::new(); n];

@@ -6,7 +6,7 @@ use nalgebra::{Point3, Vector3};
 
 use crate::scan::base::base_arcs;
 use crate::scan::forks::relocate_forks;
-use crate::scan::levels::{Geodesic, Piece, cross_section, pieces};
+use crate::scan::levels::{Geodesic, Piece, cross_section, pieces, pulled_to_centroid};
 use crate::scan::skeleton::Skeleton;
 use crate::scan::viewpoint::{
     Sensor, Sighting, move_off_near_side, near_side_shift, one_sided_viewpoint,
@@ -187,34 +187,6 @@ pub fn fine_skeleton(g: &Geodesic, bin: f64, up: &Vector3<f64>, sensor: Sensor) 
         notes,
         seen_from,
     }
-}
-
-/// How hard a fitted centre is pulled toward its points' centroid, per
-/// unit of the circle's residual over its radius ([`pulled_to_centroid`]).
-/// 1, 2, 3 and 5 gave recall / precision at 1.0 r of 0.946 / 0.961, 0.949 /
-/// 0.965, 0.947 / 0.963 and 0.949 / 0.965 on sylva-rs's three-view scans of
-/// seeds 1-3 (0.943 / 0.958 without; at 0.5 r 0.887, 0.885, 0.848 and
-/// 0.837 against 0.870), and 0.9941, 0.9953, 0.9949, 0.9950 recall on our
-/// train split's three views at 3 mm (0.9932 without).
-const CENTROID_PULL: f64 = 2.0;
-
-/// A cross-section's centre seen from all sides: the fitted circle's
-/// centre moved toward the centroid of its points by `CENTROID_PULL` ×
-/// its residual over its radius (`misfit`), all the way from half of it.
-/// Points all round a branch put their centroid near its axis, a second
-/// estimate of the centre that noise moves little. The circle's centre
-/// is the better one on a branch much wider than the noise; on a twig
-/// barely wider than it (sylva-rs's conifers: 4 mm twigs, a beam that
-/// widens them) it wanders by millimetres, and the residual says so.
-/// Where there is no circle (`misfit` infinite) the centroid is already
-/// the centre. Not for a cloud seen from one side, whose centroid lies on
-/// the near surface.
-fn pulled_to_centroid(centre: &Point3<f64>, centroid: &Point3<f64>, misfit: f64) -> Point3<f64> {
-    if !misfit.is_finite() {
-        return *centroid;
-    }
-    let pull = (CENTROID_PULL * misfit).min(1.0);
-    centre + (centroid - centre) * pull
 }
 
 fn median(values: &mut [f64]) -> Option<f64> {
@@ -548,60 +520,6 @@ mod tests {
             (skeleton.radius[off_trunk] - 0.05).abs() < 1e-12,
             "{:?}",
             skeleton.radius
-        );
-    }
-
-    /// Cross-sections of a branch seen from three sides 120° apart (each
-    /// the half facing it, 2 mm depth noise): on a 4 mm twig the fitted
-    /// circles' centres wander and pulling them toward the centroid brings
-    /// them nearer the axis; on a 40 mm branch the circle fits well and
-    /// the centre stays within a few hundredths of a millimetre of it.
-    #[test]
-    fn a_noisy_twigs_centres_are_pulled_toward_their_centroids() {
-        use crate::scan::levels::cross_section;
-        use rand::SeedableRng;
-        use rand_distr::{Distribution, Normal};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let noise = Normal::new(0.0, 0.002).unwrap();
-        let axis = Vector3::z();
-        // Mean distance from the axis of the circles' centres and of the
-        // pulled ones, and the largest shift the pull makes.
-        let mut errors = |radius: f64| {
-            let (mut circle, mut pulled, mut shift) = (0.0, 0.0, 0.0f64);
-            let slices = 200;
-            for _ in 0..slices {
-                let mut points = Vec::new();
-                for view in 0..3 {
-                    let towards = 2.0 * std::f64::consts::PI * view as f64 / 3.0;
-                    let toward = Vector3::new(towards.cos(), towards.sin(), 0.0);
-                    for i in 0..10 {
-                        let phi = towards + (i as f64 / 9.0 - 0.5) * 0.9 * std::f64::consts::PI;
-                        let on = Vector3::new(phi.cos(), phi.sin(), 0.0) * radius;
-                        let z = 0.002 * i as f64;
-                        points.push(Point3::from(
-                            on + toward * noise.sample(&mut rng) + axis * z,
-                        ));
-                    }
-                }
-                let members: Vec<usize> = (0..points.len()).collect();
-                let centroid = Point3::from(
-                    points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64,
-                );
-                let (centre, c) = cross_section(&points, &members, &centroid, &axis).unwrap();
-                let moved = pulled_to_centroid(&centre, &centroid, c.rms / c.radius);
-                let off = |p: &Point3<f64>| p.x.hypot(p.y);
-                circle += off(&centre) / slices as f64;
-                pulled += off(&moved) / slices as f64;
-                shift = shift.max((moved - centre).norm());
-            }
-            (circle, pulled, shift)
-        };
-        let (circle, pulled, _) = errors(0.004);
-        assert!(pulled < 0.8 * circle, "twig: {pulled} against {circle}");
-        let (circle, pulled, shift) = errors(0.04);
-        assert!(
-            pulled <= circle + 5e-5 && shift < 1e-4,
-            "branch: {pulled} {circle} {shift}"
         );
     }
 }
