@@ -18,8 +18,8 @@ const ARC_REACH: f64 = 1.5;
 const ARC_HEIGHT: f64 = 2.0;
 
 /// Marks in `keep` (false) the root's children whose whole branch is an
-/// unforked run of nodes within [`ARC_REACH`] root radii of the root's
-/// axis (along `up`) and [`ARC_HEIGHT`] root radii above it: arcs of the
+/// unforked run of nodes within `ARC_REACH` root radii of the root's
+/// axis (along `up`) and `ARC_HEIGHT` root radii above it: arcs of the
 /// trunk's bottom ring, not branches. A branch leaving the root goes
 /// outside that in a few centimetres, and the trunk rises above it; the
 /// root keeps at least one child. Nodes already marked are left out.

@@ -6,7 +6,7 @@
 //! - [`voxel`], [`neighbours`]: averaging cubes, the neighbourhood graph,
 //!   components and shortest paths;
 //! - [`circle_fit`], [`levels`], [`fine`], [`base`], [`forks`],
-//!   [`viewpoint`], [`simplify`]: the steps of [`extract::extract`] (its module
+//!   [`viewpoint`], [`simplify`] with [`corner`]: the steps of [`extract::extract`] (its module
 //!   documentation lists them in order);
 //! - [`skeleton`]: a tree as geometry (positions, parents, radii);
 //! - [`scanner`]: what a camera at K viewpoints would see of a tree;
@@ -18,6 +18,7 @@
 pub mod base;
 pub mod circle_fit;
 pub mod cloud;
+pub mod corner;
 pub mod extract;
 pub mod fine;
 pub mod foliage;
