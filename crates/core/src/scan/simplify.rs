@@ -34,7 +34,7 @@ pub fn simplify(
 ) -> (Skeleton, Vec<f64>) {
     let (chains, _) = fine.chains();
     let averaged = one_sided.then(|| averaged_along_chains(fine, &chains));
-    let place = averaged.as_ref().unwrap_or(fine);
+    let place = averaged.as_deref().unwrap_or(&fine.positions);
     let mut out = Skeleton {
         positions: vec![fine.positions[0]],
         parents: vec![None],
@@ -43,10 +43,7 @@ pub fn simplify(
     let mut out_confidence = vec![confidence[0]];
     let mut coarse = vec![usize::MAX; fine.len()];
     coarse[0] = 0;
-    let mut has_child = vec![false; fine.len()];
-    for p in fine.parents.iter().flatten() {
-        has_child[*p] = true;
-    }
+    let children = fine.children();
     for chain in &chains {
         let nodes = &chain.nodes;
         let keep = joints(fine, nodes, spacing);
@@ -78,10 +75,12 @@ pub fn simplify(
             radii.sort_by(f64::total_cmp);
             let id = out.positions.len();
             let at = match at {
-                None if x == nodes.len() - 1 && !has_child[nodes[x]] => on_tip_line(fine, nodes),
+                None if x == nodes.len() - 1 && children[nodes[x]].is_empty() => {
+                    on_tip_line(fine, nodes)
+                }
                 at => at,
             };
-            out.positions.push(at.unwrap_or(place.positions[nodes[x]]));
+            out.positions.push(at.unwrap_or(place[nodes[x]]));
             out.parents.push(Some(prev));
             out.radius.push(radii[radii.len() / 2]);
             out_confidence
@@ -128,13 +127,13 @@ fn on_tip_line(fine: &Skeleton, nodes: &[usize]) -> Option<nalgebra::Point3<f64>
     Some(line.mean + axis * (tip - line.mean).dot(&axis))
 }
 
-/// `fine` with each node inside a chain (not a fork, tip or the root) moved
-/// to the average of itself and its neighbours along the chain, weighted
-/// 1 : 2 : 1. Seen from one side, a fine node's centre comes from an arc
-/// fitted to the near side of its cross-section only, and scatters across
-/// the branch by millimetres from node to node (sylva-rs's beam-model
-/// scans: 4 mm twigs, one view); a joint placed at one fine node carries
-/// its whole scatter. Averaging three leaves a straight branch where it
+/// `fine`'s positions with each node inside a chain (not a fork, tip or
+/// the root) moved to the average of itself and its neighbours along the
+/// chain, weighted 1 : 2 : 1. Seen from one side, a fine node's centre
+/// comes from an arc fitted to the near side of its cross-section only,
+/// and scatters across the branch by millimetres from node to node
+/// (sylva-rs's beam-model scans: 4 mm twigs, one view); a joint placed at
+/// one fine node carries its whole scatter. Averaging three leaves a straight branch where it
 /// is; a sharp bend's joint is placed by [`corner`] instead. Chosen on our
 /// train split and sylva-rs's trees of seeds 1-3 (recall / precision at
 /// 1.0 r, one view, 3 mm, leafy: 0.753 / 0.908 at one node, 0.760 / 0.916
@@ -142,12 +141,15 @@ fn on_tip_line(fine: &Skeleton, nodes: &[usize]) -> Option<nalgebra::Point3<f64>
 /// 0.777, 0.794 / 0.865, 0.805 / 0.878). Seen from all sides the fine
 /// nodes are the centres of full circles, and averaging them blurred our
 /// trees' bends (train split, three views: 0.999 -> 0.982 recall).
-fn averaged_along_chains(fine: &Skeleton, chains: &[crate::scan::skeleton::Chain]) -> Skeleton {
-    let mut out = fine.clone();
+fn averaged_along_chains(
+    fine: &Skeleton,
+    chains: &[crate::scan::skeleton::Chain],
+) -> Vec<nalgebra::Point3<f64>> {
+    let mut out = fine.positions.clone();
     for chain in chains {
         for w in chain.nodes.windows(3) {
             let [a, k, b] = [w[0], w[1], w[2]];
-            out.positions[k] = nalgebra::Point3::from(
+            out[k] = nalgebra::Point3::from(
                 (fine.positions[a].coords
                     + fine.positions[k].coords * 2.0
                     + fine.positions[b].coords)
