@@ -164,7 +164,7 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
     };
     if !independent.is_empty() {
         md += &format!(
-            "\n## An independent scanner: sylva-rs's trees and beam-model scans\n\n`scripts/scan-independent DIR` (sylva-rs 0.3.0's `synthetic.tree_model`: broadleaf, eucalypt, savanna and conifer archetypes, 5 cm stems, 2.5 m tall, twigs to 4 mm; `synthetic.scan` with a RIEGL VZ-400i's beam, {:.0} mm range noise, 1 or 3 viewpoints 1.5 m out), then `scripts/scan-peers DIR`; scored against the models' own cylinders. Nothing of ours was tuned on these trees.\n\n",
+            "\n## An independent scanner: sylva-rs's trees and beam-model scans\n\n`scripts/scan-independent DIR` (sylva-rs 0.3.0's `synthetic.tree_model`: broadleaf, eucalypt, savanna and conifer archetypes, 5 cm stems, 2.5 m tall, twigs to 4 mm; `synthetic.scan` with a RIEGL VZ-400i's beam, {:.0} mm range noise, 1 or 3 viewpoints 1.5 m out), then `scripts/scan-peers DIR`; scored against the models' own cylinders. Seeds 1-3 (scan_peers) were used to choose some of the extraction's constants; seeds 4-6 (scan_independent_held_out) were not.\n\n",
             treemanip::eval::scans::INDEPENDENT_NOISE * 1e3
         );
         md += &to_markdown(&independent);
