@@ -3,8 +3,9 @@
 //! margin grown by [`EXTRACTED_MARGIN`], [`EXTRACTED_STRESS_RESERVE`] of the
 //! stress limit kept in reserve) and carried out on the true tree
 //! where a gripper closing at the planned contact would hold it
-//! ([`held_at`]), against the same planning on the true tree; each task
-//! the extracted tree misses is counted with why ([`Missed`]).
+//! ([`held_at`]) as a guarded move that stops at the contact-force limit
+//! ([`guarded_push`]), against the same planning on the true tree; each
+//! task the extracted tree misses is counted with why ([`Missed`]).
 
 use nalgebra::Point3;
 use rand::SeedableRng;
@@ -17,7 +18,9 @@ use crate::planner::objective::{Limits, SATISFIED};
 use crate::scan::Extraction;
 use crate::scan::skeleton::point_segment;
 use crate::seed::derive_seed;
-use crate::sim::Push;
+use crate::sim::guarded::guarded_push;
+use crate::sim::loads::PushLoads;
+use crate::sim::{Push, SimConfig};
 use crate::tree::{Branch, MAX_NODES, Tree, Wood};
 
 /// End to end over one condition's extractions.
@@ -32,8 +35,14 @@ pub struct EndToEnd {
     /// Tasks the extracted tree's push solves (whether or not the true
     /// tree's does).
     pub extracted_solved_any: usize,
-    /// Extracted-tree pushes over the load limits on the true tree.
+    /// Extracted-tree pushes over the load limits on the true tree, carried
+    /// out as guarded moves that stop at the contact-force limit
+    /// ([`guarded_push`]): what an arm with a wrist force sensor does.
     pub over_limit: usize,
+    /// The same pushes carried out to their end whatever the force.
+    pub over_limit_unguarded: usize,
+    /// Pushes the guard stopped short.
+    pub guard_stopped: usize,
     /// Tasks without an extracted tree the simulator takes (refused cloud,
     /// too many nodes).
     pub no_tree: usize,
@@ -142,16 +151,22 @@ pub fn end_to_end(
                     .as_ref()
                     .and_then(|s| held_at(tree, &found.position(s.push.node)));
                 let branch_there = held.is_some();
-                let carried = planned.zip(held).and_then(|(s, (held, node))| {
-                    solves(
-                        &held,
-                        &Push {
-                            node,
-                            vector: s.push.vector,
-                        },
-                    )
+                let carried = planned.as_ref().zip(held).and_then(|(s, (held, node))| {
+                    let guard = limits.guard_force(found, &s.push)?;
+                    let push = Push {
+                        node,
+                        vector: s.push.vector,
+                    };
+                    Some((
+                        guarded(&held, &push, &objective, limits, guard),
+                        solves(&held, &push),
+                    ))
                 });
-                let (ok, over) = carried.unwrap_or((false, false));
+                let (guarded_ok, unguarded) = carried.unzip();
+                let (ok, over, stopped) = guarded_ok.flatten().unwrap_or((false, false, false));
+                out.over_limit_unguarded +=
+                    usize::from(unguarded.flatten().is_some_and(|(_, o)| o));
+                out.guard_stopped += usize::from(stopped);
                 if true_ok && !ok {
                     let m = &mut out.missed;
                     // A push the simulator rejects on the true tree
@@ -179,9 +194,33 @@ pub fn end_to_end(
             extracted_solved: a.extracted_solved + b.extracted_solved,
             extracted_solved_any: a.extracted_solved_any + b.extracted_solved_any,
             over_limit: a.over_limit + b.over_limit,
+            over_limit_unguarded: a.over_limit_unguarded + b.over_limit_unguarded,
+            guard_stopped: a.guard_stopped + b.guard_stopped,
             no_tree: a.no_tree + b.no_tree,
             missed: a.missed.add(b.missed),
         })
+}
+
+/// `push` carried out on `tree` as a move that stops where the wrist's
+/// force reaches `stop_at` (N): (satisfied within the limits, over a limit, stopped short);
+/// `None` when the simulator rejects it.
+fn guarded(
+    tree: &Tree,
+    push: &Push,
+    objective: &crate::planner::objective::Objective,
+    limits: &Limits,
+    stop_at: f64,
+) -> Option<(bool, bool, bool)> {
+    let g = guarded_push(tree, push, &SimConfig::default(), stop_at).ok()?;
+    let residual = objective
+        .scorer()
+        .residual(tree, &g.outcome.final_positions);
+    let loads = PushLoads::of_outcome(tree, &g.outcome);
+    Some((
+        residual <= SATISFIED && limits.allow(&loads),
+        !limits.allow(&loads),
+        g.stopped,
+    ))
 }
 
 /// A gripper closing at `at` holds the true tree's branch nearest to it:

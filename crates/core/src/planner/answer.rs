@@ -58,6 +58,9 @@ pub struct Plan {
     pub simulated_loads: Option<PushLoads>,
     /// The limits enforced (`None` for `paper` or without limits).
     pub limits: Option<Limits>,
+    /// The wrist force (N) at which the arm should stop the chosen push
+    /// ([`Limits::guard_force`]): `None` without a plan or without limits.
+    pub guard_contact_force: Option<f64>,
     /// For `clear`, the clearance the chosen push reaches between branches
     /// and regions (m, negative: overlapping): predicted, and simulated.
     pub clearance: Option<Clearance>,

@@ -14,6 +14,9 @@ use serde::{Deserialize, Serialize};
 
 use super::predict::max_node_error;
 use crate::geometry::shape::{PreparedShape, Shape};
+use crate::sim::guarded::GUARD_STEP;
+use crate::sim::loads::PushLoads;
+use crate::sim::{Push, SimConfig, simulate_from};
 use crate::tree::Tree;
 
 /// One branch's intrusion into a `clear` objective's regions (inflated by
@@ -246,5 +249,42 @@ impl Limits {
     /// Whether `loads` stay within both limits.
     pub fn allow(&self, loads: &crate::sim::loads::PushLoads) -> bool {
         loads.peak_stress <= self.max_stress && loads.contact_force <= self.max_contact_force
+    }
+
+    /// The wrist force (N) at which `push` on `tree` should be stopped
+    /// (carried out as a guarded move, `sim::guarded`). A sensor reads the
+    /// force, never the stress, so the stress limit is held through the
+    /// push's own ratio of the two: were the tree stiffer by whatever
+    /// factor brings the force to F, the point s of the push would load
+    /// the wood to F × σ(s) / F(s). The guard is the least F at which
+    /// some point of the push reaches the stress limit that way (read
+    /// every [`GUARD_STEP`]; the ratio changes along a push as the peak
+    /// moves from joint to joint, and reading it at the push's end only
+    /// let the stress reach 1.25 times the limit), at most the force
+    /// limit and never below the largest force the push takes on `tree`
+    /// itself, so the tree as planned never trips it. A tree stiffer than
+    /// planned (a twig joined to the wrong parent in an extracted tree
+    /// takes 3 times the force and passes the stress limit) stops before
+    /// its wood does. `None` when the simulator rejects the push.
+    pub fn guard_force(&self, tree: &Tree, push: &Push) -> Option<f64> {
+        let steps = (push.vector.norm() / GUARD_STEP).ceil().max(1.0) as usize;
+        let config = SimConfig::default();
+        let (mut by_stress, mut largest) = (f64::INFINITY, 0.0_f64);
+        let mut warm: Option<Vec<nalgebra::Vector3<f64>>> = None;
+        for k in 1..=steps {
+            let part = Push {
+                node: push.node,
+                vector: push.vector * (k as f64 / steps as f64),
+            };
+            let out = simulate_from(tree, &part, &config, warm.as_deref()).ok()?;
+            let loads = PushLoads::of_outcome(tree, &out);
+            if loads.peak_stress > 0.0 {
+                by_stress =
+                    by_stress.min(loads.contact_force * self.max_stress / loads.peak_stress);
+            }
+            largest = largest.max(loads.contact_force);
+            warm = Some(out.joint_rotations);
+        }
+        Some(by_stress.max(largest).min(self.max_contact_force))
     }
 }

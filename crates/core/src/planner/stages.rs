@@ -226,6 +226,15 @@ impl Planner {
                     simulated: f.simulated.and_then(|s| s.clearance),
                 })
             }),
+            guard_contact_force: answered.limits.zip(found.as_ref()).and_then(|(l, f)| {
+                l.guard_force(
+                    &query.tree,
+                    &Push {
+                        node: f.plan.node,
+                        vector: f.plan.push,
+                    },
+                )
+            }),
             limits: answered.limits,
             plan: found.map(|f| f.plan),
             evaluations: answered.evaluations,

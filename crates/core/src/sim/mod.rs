@@ -16,6 +16,7 @@
 //! The documentation beside the code: `docs/simulation.md`.
 
 pub mod contact;
+pub mod guarded;
 pub mod linear;
 pub mod loads;
 pub mod path_joints;

@@ -142,3 +142,88 @@ fn every_joint_balances_the_contact_force() {
     }
     assert!(checked >= 40, "{checked} joints checked");
 }
+
+/// A guarded push on a slot-held cantilever stops where the closed form
+/// puts the force at the guard: the branch turns by φ = atan(t/g) for a
+/// gripper t along (g = ℓ − grip offset), held at √(g² + t²) from the
+/// joint, so |F| = K φ / √(g² + t²).
+#[test]
+fn a_guarded_push_stops_where_the_closed_form_force_reaches_the_guard() {
+    use treemanip_core::sim::guarded::{GUARD_TOLERANCE, guarded_push};
+    let (length, radius) = (0.4, 0.006);
+    let tree = cantilever(length, radius);
+    let k = tree.branch(1).unwrap().stiffness;
+    let g = length - GRIP_OFFSET;
+    let force_at = |t: f64| k * (t / g).atan() / (g * g + t * t).sqrt();
+    let push = Push {
+        node: 1,
+        vector: Vector3::x() * 0.08,
+    };
+    let config = SimConfig::default();
+    for stop_t in [0.013, 0.05] {
+        let stop_at = force_at(stop_t);
+        let guarded = guarded_push(&tree, &push, &config, stop_at).unwrap();
+        assert!(guarded.stopped);
+        let t = guarded.fraction * 0.08;
+        assert!(
+            t <= stop_t + 1e-9 && stop_t - t <= GUARD_TOLERANCE,
+            "stopped {t} m along, the closed form says {stop_t}"
+        );
+        let force = Vector3::from(guarded.outcome.report.contact_force).norm();
+        assert!(
+            force <= stop_at && force > 0.99 * stop_at,
+            "{force} N, guard {stop_at}"
+        );
+        // The tree stands where the closed form puts it at that point.
+        let phi = (t / g).atan();
+        let tip = Point3::new(length * phi.sin(), 0.0, length * phi.cos());
+        assert!((guarded.outcome.final_positions[1] - tip).norm() < 1e-9);
+    }
+    // A guard above the whole push's force never trips: the push as the
+    // simulator gives it.
+    let whole = simulate(&tree, &push, &config).unwrap();
+    let guarded = guarded_push(&tree, &push, &config, force_at(0.08) * 1.01).unwrap();
+    assert!(!guarded.stopped && guarded.fraction == 1.0);
+    assert!((guarded.outcome.final_positions[1] - whole.final_positions[1]).norm() < 1e-9);
+}
+
+/// On random trees the guarded push never ends above its guard, carries
+/// out the whole push when the push stays below it, and stops short when
+/// it does not.
+#[test]
+fn a_guarded_push_never_ends_above_its_guard() {
+    use treemanip_core::sim::guarded::guarded_push;
+    let config = SimConfig::default();
+    let (mut stopped, mut whole) = (0, 0);
+    let cases = (0..4).flat_map(|seed| {
+        let (tree, pushes) = random_tree_and_pushes(seed, 20, 6);
+        pushes.into_iter().map(move |p| (tree.clone(), p))
+    });
+    for (tree, push) in cases {
+        let Ok(out) = simulate(&tree, &push, &config) else {
+            continue;
+        };
+        let full = Vector3::from(out.report.contact_force).norm();
+        for stop_at in [0.5 * full, 2.0 * full] {
+            let Ok(g) = guarded_push(&tree, &push, &config, stop_at) else {
+                continue;
+            };
+            let f = Vector3::from(g.outcome.report.contact_force).norm();
+            assert!(f <= stop_at, "{f} N over the guard {stop_at}");
+            if g.stopped {
+                stopped += 1;
+                assert!(g.fraction < 1.0);
+            } else {
+                whole += 1;
+                assert!(
+                    (g.outcome.final_positions[push.node] - out.final_positions[push.node]).norm()
+                        < 1e-6
+                );
+            }
+        }
+    }
+    assert!(
+        stopped >= 8 && whole >= 8,
+        "stopped {stopped}, whole {whole}"
+    );
+}

@@ -332,6 +332,7 @@ fn response(
     let execution = chosen.as_ref().map(|p| &p.execution);
     let limits = plan.limits;
     PlanResponse {
+        guard_contact_force: plan.guard_contact_force,
         objective: plan.objective,
         clearance: plan.clearance.map(ClearanceJson::from),
         predicted_loads: plan

@@ -7,9 +7,10 @@ use serde_json::{Value, json};
 use treemanip_core::geometry::shape::Shape;
 use treemanip_core::planner::Objective;
 use treemanip_core::planner::objective::SATISFIED;
+use treemanip_core::sim::guarded::guarded_push;
 use treemanip_core::sim::loads::PushLoads;
 use treemanip_core::sim::{Push, SimConfig, simulate};
-use treemanip_core::tree::{ScaParams, Tree, generate};
+use treemanip_core::tree::{Branch, ScaParams, Tree, generate};
 use treemanip_server::api::types::TreeJson;
 
 use crate::common::server::Server;
@@ -98,6 +99,46 @@ fn plan_clears_a_fruit_and_reports_loads() {
         let margin = simulated["margin"]["stress"].as_f64().unwrap();
         assert!((margin - (1.0 - loads.peak_stress / 40e6)).abs() < 1e-9);
         assert!(plan["predicted_loads"]["peak_stress"].as_f64().unwrap() > 0.0);
+        // The guard: the tree as sent never trips it; the same tree stiff
+        // enough to take 1.5 times the guard for the push does, before its
+        // wood passes the stress limit (the shape is the same, forces and
+        // stresses scale with the stiffness).
+        let guard = plan["guard_contact_force"].as_f64().unwrap();
+        let at_end = loads.contact_force * 40e6 / loads.peak_stress;
+        assert!(guard <= at_end.min(50.0) + 1e-9, "{guard} N");
+        assert!(guard >= loads.contact_force, "{guard} N");
+        let config = SimConfig::default();
+        let as_sent = guarded_push(&tree, &push, &config, guard).unwrap();
+        assert!(
+            !as_sent.stopped,
+            "{strategy}: the tree as planned tripped the guard"
+        );
+        let factor = 1.5 * guard / loads.contact_force;
+        let stiffer = Tree::new(
+            tree.positions().to_vec(),
+            tree.parents().to_vec(),
+            tree.branches()
+                .iter()
+                .map(|b| {
+                    b.map(|b| Branch {
+                        stiffness: factor * b.stiffness,
+                        ..b
+                    })
+                })
+                .collect(),
+        )
+        .unwrap();
+        let unguarded =
+            PushLoads::of_outcome(&stiffer, &simulate(&stiffer, &push, &config).unwrap());
+        let guarded = guarded_push(&stiffer, &push, &config, guard).unwrap();
+        let held = PushLoads::of_outcome(&stiffer, &guarded.outcome);
+        assert!(guarded.stopped && guarded.fraction < 1.0);
+        assert!(unguarded.contact_force > guard, "{unguarded:?}");
+        assert!(unguarded.peak_stress > 40e6 || unguarded.contact_force > 50.0);
+        assert!(
+            held.contact_force <= guard && held.peak_stress <= 40e6,
+            "{held:?}"
+        );
         let executed = objective.residual(&tree, &out.final_positions);
         let clearance = plan["clearance"]["simulated"].as_f64().unwrap();
         let reached = objective

@@ -138,6 +138,15 @@ pub struct PlanResponse {
     /// The limits enforced (`null` for `paper`).
     #[schema(required = true)]
     pub limits: Option<LimitsAnswer>,
+    /// Carry the push out as a guarded move: stop where the wrist's force
+    /// first reaches this (N). It is the force limit, or where the push's
+    /// simulated stress per newton would put the wood at the stress
+    /// limit, whichever is lower, so the tree as sent never trips it; a
+    /// real tree stiffer than the one sent (a tree extracted from a scan,
+    /// above all) stops before it is overloaded. `null` without a plan or
+    /// without limits.
+    #[schema(required = true)]
+    pub guard_contact_force: Option<f64>,
     /// For `clear`: the clearance the push reaches between branches and
     /// regions (m, negative: overlapping), predicted and simulated.
     #[schema(required = true)]
