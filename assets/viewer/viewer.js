@@ -452,11 +452,15 @@ async function plan() {
   const loads = answer.simulated_loads
     ? ` Held: peak stress ${(answer.simulated_loads.peak_stress / 1e6).toFixed(1)} MPa, force ${answer.simulated_loads.contact_force.toFixed(1)} N.`
     : '';
+  const guard =
+    answer.guard_contact_force === null || answer.guard_contact_force === undefined
+      ? ''
+      : ` Stop the push when the wrist reads ${answer.guard_contact_force.toFixed(1)} N (guard).`;
   $('plan-status').textContent =
     `Push node ${answer.node} by ${answer.push.map(cm).join(', ')} cm from base ` +
     `(${answer.base.position.map((v) => v.toFixed(2)).join(', ')}) m: predicted ${what} ${err} cm ` +
     `(no action ${cm(answer.no_action_error)} cm); ${configurations.length} waypoints, ` +
-    `${answer.total_ms.toFixed(0)} ms.${loads}`;
+    `${answer.total_ms.toFixed(0)} ms.${loads}${guard}`;
   document.body.dataset.plan = 'planned';
   play(true);
 }

@@ -160,6 +160,8 @@ def run(url, shots, urdf, urdf_nodes, ply=None, ply_points=None):
             c.js("window.treemanipViewer.play(false); window.treemanipViewer.showFrame(1e9)")
             phase = browser.find_element(By.ID, "phase").text
             c.ok(phase.startswith("push"), f"trajectory ends pushing ({phase!r})")
+            status = browser.find_element(By.ID, "plan-status").text
+            c.ok("(guard)" in status, f"the guard force shown: {status!r}")
             arm = c.js("return window.treemanipViewer.pixelsNear(arguments[0], 40)", colours["arm"])
             c.ok(arm > 200, f"arm visible ({arm} pixels)")
             c.shot("viewer_plan.png")
