@@ -273,6 +273,9 @@ pub fn plan(args: PlanArgs) -> anyhow::Result<()> {
                 end,
                 plan.total_ms
             );
+            if let Some(guard) = plan.guard_contact_force {
+                println!("stop the push when the wrist reads {guard:.1} N (guard)");
+            }
         }
         None => println!("no plan ({:.1} ms)", plan.total_ms),
     }
