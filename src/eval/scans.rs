@@ -1,13 +1,13 @@
 //! Trees from scans, evaluated (`treemanip eval scans`): test-split trees
 //! scanned synthetically ([`crate::scan::scanner`]) under each condition
 //! (viewpoints, depth noise, leaves), the tree extracted from the cloud and
-//! scored against the true one ([`crate::scan::score`]), and end to end: a
+//! scored against the true one ([`crate::scan::score`](mod@crate::scan::score)), and end to end: a
 //! `clear` task planned on the extracted tree (the arm-free oracle search
 //! with the simulator and load limits, the clearance margin grown by
 //! [`EXTRACTED_MARGIN`]), the push carried out on the true tree in the
 //! simulator where a gripper closing at the planned contact would hold it
 //! ([`held_at`]), against the same planning on the true tree
-//! ([`end_to_end`](mod@end_to_end)).
+//! ([`end_to_end()`]).
 //!
 //! The extraction's parameters were chosen on other trees (seeds 1-8 of
 //! the generator, never a test-split seed), so every tree here is held out.

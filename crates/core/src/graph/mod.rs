@@ -27,7 +27,7 @@
 //!
 //! | task | node n_j | global g |
 //! | --- | --- | --- |
-//! | forward model | [c_j] (1 at the contacted node) | [T] (push, m) |
+//! | forward model | \[c_j\] (1 at the contacted node) | \[T\] (push, m) |
 //! | contact policy | [p′_j − p_j] (target offset, m) | none |
 //!
 //! Features are raw SI values; normalisation (statistics from the training

@@ -1,7 +1,7 @@
 //! Planning a push that serves an objective: the one entry point used by
 //! `/v1/plan`, `treemanip plan` and `treemanip eval plan` / `eval tasks`.
 //!
-//! It composes the contact policy ([`crate::infer`]), a predictor of what a
+//! It composes the contact policy (`treemanip-infer`), a predictor of what a
 //! push does (the forward model or the simulator, [`predict`]), and the arm
 //! ([`crate::robot`]):
 //! 1. for a full target shape the policy ranks the nodes and proposes a

@@ -1,5 +1,5 @@
 //! The planner and the arm it places: [`Planner`] holds the arm's
-//! collision geometry, built once; [`Placed`] is that arm moved to one
+//! collision geometry, built once; `Placed` is that arm moved to one
 //! base, with its start configuration.
 
 use nalgebra::Isometry3;

@@ -10,7 +10,7 @@
 //!   documentation lists them in order);
 //! - [`skeleton`]: a tree as geometry (positions, parents, radii);
 //! - [`scanner`]: what a camera at K viewpoints would see of a tree;
-//! - [`score`]: recall, precision, radius error and topology against the
+//! - [`score`](mod@score): recall, precision, radius error and topology against the
 //!   true tree.
 //!
 //! Documentation beside the code: `docs/scans.md`.

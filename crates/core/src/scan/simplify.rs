@@ -7,12 +7,12 @@
 //! the straight stretches on either side meet ([`corner`]): the fine nodes
 //! round a bend off inside it, and where they round it off over two
 //! joints, the two become one there ([`chamfer`]). A joint also stays
-//! where the branch has tapered ([`taper_split`]): each joint carries one
+//! where the branch has tapered (`taper_split`): each joint carries one
 //! radius for its whole span, and the simulator's stiffness goes with its
 //! fourth power. A tip's joint goes onto the line of the fine nodes before
-//! it ([`on_tip_line`]), and seen from one side a joint along a branch
+//! it (`on_tip_line`), and seen from one side a joint along a branch
 //! stands at the average of the fine nodes around it
-//! ([`averaged_along_chains`]).
+//! (`averaged_along_chains`).
 
 use crate::geometry::principal::principal;
 use crate::scan::corner::{chamfer, corner};
@@ -25,7 +25,7 @@ pub const MIN_JOINT_SPACING: f64 = crate::tree::sca::MIN_NODE_SPACING;
 /// The simplified skeleton and each joint's confidence (the mean over the
 /// fine nodes it stands for). `one_sided`: the cloud was seen from one
 /// side, and a joint along a branch stands at the average of the fine
-/// nodes around it ([`averaged_along_chains`]), not at one of them.
+/// nodes around it (`averaged_along_chains`), not at one of them.
 pub fn simplify(
     fine: &Skeleton,
     confidence: &[f64],

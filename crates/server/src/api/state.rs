@@ -87,7 +87,7 @@ pub struct AppState {
     pub models: Option<Arc<ModelSet>>,
     pub(crate) admission: Arc<Semaphore>,
     pub(crate) metrics: metrics_exporter_prometheus::PrometheusHandle,
-    /// Graceful shutdown's state ([`shutdown`]).
+    /// Graceful shutdown's state ([`crate::api::shutdown`]).
     pub drain: Arc<Drain>,
     /// A planner per arm served, each built once.
     pub robots: Arc<RobotPlanners>,

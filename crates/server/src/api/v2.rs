@@ -151,8 +151,8 @@ fn flatten(value: &Value, out: &mut Vec<f32>, name: &str) -> Result<(), ApiError
 /// [B, N, N, 6] holds, for i → j, [Δp = p_j − p_i (m, 3), v (+1 when i is an
 /// ancestor of j, else −1), b (1 when i and j are parent and child, else 0),
 /// κ = ln K_s − the tree's mean ln K_s for that branch (0 when not a
-/// branch)]; `nodes` holds [c_j] (forward) or [p′_j − p_j] (policy), `global`
-/// [T] (forward), `mask` 1 for real nodes. Tensor data may be JSON (flat or
+/// branch)]; `nodes` holds `[c_j]` (forward) or `[p′_j − p_j]` (policy),
+/// `global` `[T]` (forward), `mask` 1 for real nodes. Tensor data may be JSON (flat or
 /// nested) or, with Triton's binary tensor data extension, raw little-endian
 /// bytes after a JSON header of `Inference-Header-Content-Length` bytes.
 /// Outputs are JSON.

@@ -16,7 +16,7 @@
 //!   ([`super::edge_attributes_with`]), where κ is ln K_s relative to the
 //!   mean over the *path's* branches (only path ratios matter; the side
 //!   branches carry κ = 0);
-//! - node n_j = [c_j], global g = [T], and the output Δp_j per graph node,
+//! - node n_j = \[c_j\], global g = \[T\], and the output Δp_j per graph node,
 //!   exactly as for the paper's forward model.
 //!
 //! What the model answers per graph node, and how it becomes the whole

@@ -13,7 +13,7 @@ pub const PAPER_BASE: Isometry3<f64> = Isometry3::from_parts(
 
 /// Where a mobile base stands for a push, relative to the grip point:
 /// the horizontal distance from the base to the grip point, and the grip
-/// point's height above the base (m). Scored per arm by [`Arm::stances`].
+/// point's height above the base (m). Scored per arm by `Arm::stances`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BaseStance {
     pub stand_off: f64,

@@ -20,7 +20,7 @@ impl Arm {
     /// frame), within the joint limits, nearest `reference` first (largest
     /// joint difference). The closed form gives every solution; a
     /// numerical chain the one reached from `reference` and those reached
-    /// from [`IK_STARTS`] fixed random starts.
+    /// from `IK_STARTS` fixed random starts.
     pub fn inverse_kinematics(
         &self,
         tool: &Isometry3<f64>,

@@ -26,7 +26,7 @@ pub enum JointKind {
     Fixed,
 }
 
-/// A mimic joint's rule: q = multiplier × q[variable] + offset.
+/// A mimic joint's rule: q = multiplier × q\[variable\] + offset.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Mimic {
     /// Index of the followed joint among the chain's variables.

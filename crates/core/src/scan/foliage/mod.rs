@@ -222,7 +222,7 @@ pub fn is_foliage([r, g, b]: [u8; 3]) -> bool {
 }
 
 /// Calls each of `points` foliage or not with `classifier`. With
-/// `min_share`, first a survey of every [`SURVEY_STRIDE`]th cube: when
+/// `min_share`, first a survey of every `SURVEY_STRIDE`th cube: when
 /// less than that share of the surveyed points look like leaf, `None`
 /// (the cloud is not leafy) without classifying the rest.
 pub fn call_foliage(

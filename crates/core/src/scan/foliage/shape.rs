@@ -107,7 +107,7 @@ fn scales(
     }
 }
 
-/// Each fine cube's nearest cubes (at most [`NEIGHBOURS`] within the
+/// Each fine cube's nearest cubes (at most `NEIGHBOURS` within the
 /// largest fine scale), nearest first: the one query both the shape
 /// features and the context ([`super::context`]) read, made once. Indices
 /// only (4 bytes a neighbour, 256 a cube); distances are recomputed.

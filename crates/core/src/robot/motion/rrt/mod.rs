@@ -17,7 +17,7 @@
 //!   first solution, or at once when a path is as short as the straight
 //!   line to the nearest goal (nothing can beat it).
 //!
-//! - By default edges are evaluated lazily ([`lazy`]): checked only when a
+//! - By default edges are evaluated lazily (`lazy`): checked only when a
 //!   path through them is about to be used (`lazy: false` keeps the
 //!   textbook algorithm, which checks every edge as it is added).
 //!

@@ -33,7 +33,7 @@ pub struct RrtStarOptions {
     pub refine_iterations: usize,
     /// How far beyond the start and goals each joint is sampled (rad).
     pub sampling_margin: f64,
-    /// Lazy edge evaluation ([`lazy`]): edges join the tree unchecked and
+    /// Lazy edge evaluation (`lazy`): edges join the tree unchecked and
     /// are checked only when a path through them is about to be used.
     pub lazy: bool,
     pub seed: u64,
