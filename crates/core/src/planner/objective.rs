@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::predict::max_node_error;
 use crate::geometry::shape::{PreparedShape, Shape};
-use crate::sim::guarded::GUARD_STEP;
+use crate::sim::guarded::{GUARD_STEP, MAX_GUARD_STEPS};
 use crate::sim::loads::PushLoads;
 use crate::sim::{Push, SimConfig, simulate_from};
 use crate::tree::Tree;
@@ -267,7 +267,7 @@ impl Limits {
     /// takes 3 times the force and passes the stress limit) stops before
     /// its wood does. `None` when the simulator rejects the push.
     pub fn guard_force(&self, tree: &Tree, push: &Push) -> Option<f64> {
-        let steps = (push.vector.norm() / GUARD_STEP).ceil().max(1.0) as usize;
+        let steps = ((push.vector.norm() / GUARD_STEP).ceil() as usize).clamp(1, MAX_GUARD_STEPS);
         let config = SimConfig::default();
         let (mut by_stress, mut largest) = (f64::INFINITY, 0.0_f64);
         let mut warm: Option<Vec<nalgebra::Vector3<f64>>> = None;

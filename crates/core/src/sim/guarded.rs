@@ -19,15 +19,34 @@
 use super::{Push, PushOutcome, SimConfig, SimError, simulate, simulate_from};
 use crate::tree::Tree;
 use nalgebra::Vector3;
+use std::time::Instant;
 
 /// Steps (m) at which the force is read along the push before the
 /// crossing is bisected: short enough that a push cannot pass over a
 /// force peak unseen (a branch's force peaks about a branch length along).
 pub const GUARD_STEP: f64 = 0.005;
 
+/// Most readings before the crossing is bisected: a push longer than
+/// `MAX_GUARD_STEPS` × [`GUARD_STEP`] (20 cm) is read at its length over
+/// this. Each reading is a simulation, warm-started from the one before,
+/// so the work of a guarded push is bounded (at most this plus a dozen
+/// bisections) whatever its length.
+pub const MAX_GUARD_STEPS: usize = 40;
+
 /// How closely (m along the push) the stop is located: a wrist sensor
 /// read at 500 Hz during a 2 cm/s push sees every 0.04 mm.
 pub const GUARD_TOLERANCE: f64 = 1e-4;
+
+/// Why a guarded push has no answer.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GuardError {
+    /// The simulator rejected a step before the guard tripped.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// The deadline passed between two readings.
+    #[error("the guarded push ran out of time after {readings} simulations")]
+    OutOfTime { readings: usize },
+}
 
 /// What a guarded push did.
 #[derive(Debug, Clone)]
@@ -43,16 +62,28 @@ pub struct GuardedPush {
 /// `push` carried out on `tree` as a move that stops where the contact
 /// force first reaches `stop_at` (N). The returned state's force is at
 /// most `stop_at`. Errors are the simulator's, at the first step it
-/// rejects before the guard trips.
+/// rejects before the guard trips, or the `deadline` passing (checked
+/// before each simulation: a deep path's simulation can take seconds).
 pub fn guarded_push(
     tree: &Tree,
     push: &Push,
     config: &SimConfig,
     stop_at: f64,
-) -> Result<GuardedPush, SimError> {
+    deadline: Option<Instant>,
+) -> Result<GuardedPush, GuardError> {
     let length = push.vector.norm();
     let force = |o: &PushOutcome| Vector3::from(o.report.contact_force).norm();
-    let steps = (length / GUARD_STEP).ceil().max(1.0) as usize;
+    let steps = ((length / GUARD_STEP).ceil() as usize).clamp(1, MAX_GUARD_STEPS);
+    let mut readings = 0;
+    let mut in_time = || {
+        readings += 1;
+        match deadline {
+            Some(d) if Instant::now() > d => Err(GuardError::OutOfTime {
+                readings: readings - 1,
+            }),
+            _ => Ok(()),
+        }
+    };
     let part = |s: f64| Push {
         node: push.node,
         vector: push.vector * s,
@@ -63,6 +94,7 @@ pub fn guarded_push(
         k += 1;
         let s = k as f64 / steps as f64;
         let warm = below.as_ref().map(|(_, o)| o.joint_rotations.as_slice());
+        in_time()?;
         let out = simulate_from(tree, &part(s), config, warm)?;
         if force(&out) <= stop_at {
             if k == steps {
@@ -80,6 +112,7 @@ pub fn guarded_push(
         while (hi - lo) * length > GUARD_TOLERANCE {
             let mid = 0.5 * (lo + hi);
             let warm = below.as_ref().map(|(_, o)| o.joint_rotations.as_slice());
+            in_time()?;
             let o = simulate_from(tree, &part(mid), config, warm)?;
             if force(&o) <= stop_at {
                 lo = mid;

@@ -8,7 +8,8 @@ use serde_json::json;
 use super::AppState;
 use super::error::{ApiError, ErrorCode};
 use super::json::ApiJson;
-use crate::api::types::{SimulateRequest, SimulateResponse};
+use crate::api::types::{GuardedJson, SimulateRequest, SimulateResponse};
+use treemanip_core::sim::guarded::{GuardError, guarded_push};
 use treemanip_core::sim::loads::branch_loads;
 use treemanip_core::sim::{MAX_PUSH_LENGTH, Push, SimConfig, SimError, simulate as run_sim};
 
@@ -17,7 +18,9 @@ use treemanip_core::sim::{MAX_PUSH_LENGTH, Push, SimConfig, SimError, simulate a
 /// The gripper holds the branch ending at `contact_node` and moves by `push`;
 /// the answer is where the tree settles, with the solver's report. Pushes the
 /// physics rejects (the branch slips out of the slot, the node cannot be
-/// carried that far) are 422 push_infeasible.
+/// carried that far) are 422 push_infeasible. With
+/// `stop_at_contact_force` the push is carried out as a guarded move and
+/// the answer is the tree where the arm stopped (`guarded`).
 #[utoipa::path(post, path = "/v1/simulate", tag = "physics",
     request_body = SimulateRequest,
     responses(
@@ -45,9 +48,35 @@ pub async fn simulate(
         ..SimConfig::default()
     };
     let contact = request.contact;
+    let guard = match request.stop_at_contact_force {
+        Some(f) if !(f.is_finite() && f > 0.0) => {
+            return Err(ApiError::invalid_argument(format!(
+                "`stop_at_contact_force` must be a positive number of newtons, it is {f}"
+            ))
+            .with_details(json!({ "field": "stop_at_contact_force" })));
+        }
+        g => g,
+    };
+    // The work stops at the deadline: its answer is the timeout the
+    // client already got, and the worker is free again.
+    let budget = state.limits.request_timeout.as_secs_f64();
     let response = state
-        .run_blocking("/v1/simulate", move || {
-            let outcome = run_sim(&tree, &push, &config).map_err(sim_error)?;
+        .run_model_work("/v1/simulate", None, move |control| {
+            let (outcome, guarded) = match guard {
+                Some(stop_at) => {
+                    let g = guarded_push(&tree, &push, &config, stop_at, control.deadline)
+                        .map_err(|e| match e {
+                            GuardError::Sim(e) => sim_error(e),
+                            GuardError::OutOfTime { .. } => ApiError::timeout(budget),
+                        })?;
+                    let guarded = GuardedJson {
+                        fraction: g.fraction,
+                        stopped: g.stopped,
+                    };
+                    (g.outcome, Some(guarded))
+                }
+                None => (run_sim(&tree, &push, &config).map_err(sim_error)?, None),
+            };
             let loads = branch_loads(&tree, &outcome.joint_rotations);
             let xyz = |p: &nalgebra::Point3<f64>| [p.x, p.y, p.z];
             Ok(SimulateResponse {
@@ -69,6 +98,7 @@ pub async fn simulate(
                 wood_modulus: loads.implied_modulus,
                 peak_stress: loads.peak_stress.map(Into::into),
                 solver: (&outcome.report).into(),
+                guarded,
             })
         })
         .await?;

@@ -281,3 +281,33 @@ fn non_json_numbers_deep_nesting_and_huge_bodies() {
     let (status, _) = server.json("POST", "/v1/forward", &forward(tree()));
     assert_eq!(status, 200);
 }
+
+/// A guarded push on a 200-joint chain (each of its simulations a dense
+/// solve of 600 unknowns) is stopped at the request's deadline: 504, and
+/// the server answers the next request.
+#[test]
+fn a_guarded_push_stops_at_the_deadline() {
+    let server = Server::start(&["--models-dir", MODELS, "--request-timeout", "1"]);
+    let n = 200;
+    let chain = json!({
+        "positions": (0..n).map(|k| [0.0, 0.0, k as f64 * 0.1]).collect::<Vec<_>>(),
+        "parents": (0..n).map(|k: usize| k.checked_sub(1)).collect::<Vec<_>>(),
+        "radius": (0..n).map(|k| if k == 0 { None } else { Some(0.02) }).collect::<Vec<_>>(),
+    });
+    let body = json!({
+        "tree": chain,
+        "contact_node": n - 1,
+        "push": [0.9, 0.0, 0.0],
+        "stop_at_contact_force": 1e6,
+    });
+    let started = std::time::Instant::now();
+    let error = expect(&server, "/v1/simulate", &body, 504, "timeout");
+    assert!(
+        error["message"].as_str().unwrap().contains("1.0 s"),
+        "{error}"
+    );
+    assert!(started.elapsed().as_secs_f64() < 5.0);
+    let small = json!({ "tree": tree(), "contact_node": 3, "push": [0, 0.03, 0] });
+    let (status, answer) = server.json("POST", "/v1/simulate", &small);
+    assert_eq!(status, 200, "{answer}");
+}

@@ -197,6 +197,16 @@ fn every_error_class_has_its_status_and_shape() {
     });
     let error = expect_error(&server, &simulate_body(big), 413, "too_large");
     assert_eq!(error["details"]["max_nodes"], 512);
+    // 422: a guard that is no force.
+    for bad in [json!(0.0), json!(-3.0)] {
+        let mut guarded = simulate_body(tree_json());
+        guarded["stop_at_contact_force"] = bad;
+        let error = expect_error(&server, &guarded, 422, "invalid_argument");
+        assert_eq!(
+            error["details"]["field"], "stop_at_contact_force",
+            "{error}"
+        );
+    }
     // 422: invalid trees, each naming field and node.
     let mut cycle = tree_json();
     cycle["parents"] = json!([null, 2, 1, 1]);

@@ -108,7 +108,7 @@ fn plan_clears_a_fruit_and_reports_loads() {
         assert!(guard <= at_end.min(50.0) + 1e-9, "{guard} N");
         assert!(guard >= loads.contact_force, "{guard} N");
         let config = SimConfig::default();
-        let as_sent = guarded_push(&tree, &push, &config, guard).unwrap();
+        let as_sent = guarded_push(&tree, &push, &config, guard, None).unwrap();
         assert!(
             !as_sent.stopped,
             "{strategy}: the tree as planned tripped the guard"
@@ -130,7 +130,7 @@ fn plan_clears_a_fruit_and_reports_loads() {
         .unwrap();
         let unguarded =
             PushLoads::of_outcome(&stiffer, &simulate(&stiffer, &push, &config).unwrap());
-        let guarded = guarded_push(&stiffer, &push, &config, guard).unwrap();
+        let guarded = guarded_push(&stiffer, &push, &config, guard, None).unwrap();
         let held = PushLoads::of_outcome(&stiffer, &guarded.outcome);
         assert!(guarded.stopped && guarded.fraction < 1.0);
         assert!(unguarded.contact_force > guard, "{unguarded:?}");
@@ -139,6 +139,21 @@ fn plan_clears_a_fruit_and_reports_loads() {
             held.contact_force <= guard && held.peak_stress <= 40e6,
             "{held:?}"
         );
+        // `/v1/simulate` carries out the same guarded move on the stiffer
+        // tree, sent with its stiffness.
+        let body = json!({
+            "tree": serde_json::to_value(TreeJson::from_tree(&stiffer)).unwrap(),
+            "contact_node": push.node,
+            "push": [push.vector.x, push.vector.y, push.vector.z],
+            "stop_at_contact_force": guard,
+        });
+        let (status, sim) = server.json("POST", "/v1/simulate", &body);
+        assert_eq!(status, 200, "{sim}");
+        assert_eq!(sim["guarded"]["stopped"], true);
+        let fraction = sim["guarded"]["fraction"].as_f64().unwrap();
+        assert!((fraction - guarded.fraction).abs() < 1e-9, "{fraction}");
+        let peak = sim["peak_stress"]["stress"].as_f64().unwrap();
+        assert!((peak - held.peak_stress).abs() < 1.0, "{peak}");
         let executed = objective.residual(&tree, &out.final_positions);
         let clearance = plan["clearance"]["simulated"].as_f64().unwrap();
         let reached = objective

@@ -52,5 +52,5 @@ pub use scene::{
     BaseJson, LinkJson, LinkPosesRequest, LinkPosesResponse, TreeResponse, UrdfRequest,
 };
 pub use shape::ShapeJson;
-pub use simulate::{ContactJson, SimulateRequest, SimulateResponse};
+pub use simulate::{ContactJson, GuardedJson, SimulateRequest, SimulateResponse};
 pub use tree::TreeJson;

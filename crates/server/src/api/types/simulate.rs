@@ -22,6 +22,13 @@ pub struct SimulateRequest {
     pub push: Vec<f64>,
     #[serde(default)]
     pub contact: ContactJson,
+    /// Carry the push out as a guarded move that stops where the
+    /// contact force first reaches this (N, > 0): a plan's
+    /// `guard_contact_force`, tried on this tree. The answer is the tree
+    /// where the arm stopped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(exclusive_minimum = 0.0)]
+    pub stop_at_contact_force: Option<f64>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
@@ -58,6 +65,19 @@ pub struct SimulateResponse {
     #[schema(required = true)]
     pub peak_stress: Option<PeakStressJson>,
     pub solver: SolverReportJson,
+    /// With `stop_at_contact_force`: how much of the push was carried out.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub guarded: Option<GuardedJson>,
+}
+
+/// What a guarded push did.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(as = Guarded)]
+pub struct GuardedJson {
+    /// Share of the push carried out (1: the guard never tripped).
+    pub fraction: f64,
+    /// Whether the guard stopped the arm before the push's end.
+    pub stopped: bool,
 }
 
 /// How the gripper holds the branch: `slot` (it may slide along the
