@@ -363,3 +363,88 @@ fn the_search_brings_a_node_into_reach() {
     }
     assert!(cases >= 3 && met * 4 >= cases * 3, "{met} of {cases}");
 }
+
+/// The simulator's positions with every displacement halved: loads read
+/// from them run about half the simulator's, as a forward model's may, so
+/// its best pushes overload the tree in their simulation.
+struct Timid;
+
+impl treemanip::planner::Predictor for Timid {
+    fn final_positions(
+        &self,
+        tree: &Tree,
+        pushes: &[Push],
+    ) -> Result<Vec<Option<Vec<Point3<f64>>>>, treemanip::planner::PredictError> {
+        let full = PhysicsPredictor.final_positions(tree, pushes)?;
+        Ok(full
+            .into_iter()
+            .map(|o| {
+                o.map(|after| {
+                    after
+                        .iter()
+                        .zip(tree.positions())
+                        .map(|(p, rest)| rest + (p - rest) * 0.5)
+                        .collect()
+                })
+            })
+            .collect())
+    }
+
+    fn name(&self) -> &'static str {
+        "model"
+    }
+}
+
+/// `model` with a predictor that reads loads too low: the pushes whose
+/// simulation is over a limit are tried again eased back to it
+/// (`planner::eased`), and what is carried out is within the limits.
+#[test]
+fn overloaded_pushes_are_eased_back_to_the_limits() {
+    let limits = Limits {
+        max_stress: 40e6,
+        max_contact_force: 50.0,
+    };
+    let mut eased = 0;
+    for seed in 0..16u64 {
+        let (tree, _) = random_tree_and_pushes(300 + seed, 12, 1);
+        let j = tree.len() - 1;
+        let parent = tree.parent(j).unwrap();
+        let centre = nalgebra::center(&tree.position(parent), &tree.position(j));
+        let objective = Objective::Clear {
+            regions: vec![Shape::Sphere {
+                centre,
+                radius: 0.03,
+            }],
+            margin: 0.01,
+        };
+        let mut query = Query::with_objective(tree.clone(), objective);
+        query.strategy = Strategy::Model;
+        query.limits = Some(limits);
+        query.stance = Stance::Region(treemanip::eval::plan::evaluation_region());
+        let plan = Planner::default()
+            .plan(&query, &NoPolicy, Some(&Timid))
+            .unwrap();
+        let Some(p) = &plan.plan else { continue };
+        let out = simulate(
+            &tree,
+            &Push {
+                node: p.node,
+                vector: p.push,
+            },
+            &SimConfig::default(),
+        )
+        .unwrap();
+        assert!(limits.allow(&PushLoads::of_outcome(&tree, &out)));
+        // An eased push: the same node and direction as a push refused
+        // over a limit, at most 0.95 of its length.
+        let from_overload = plan.attempts.iter().any(|a| {
+            let v = Vector3::from(a.push);
+            a.outcome == Outcome::OverLimit
+                && a.node == p.node
+                && p.push.norm() <= 0.95 * v.norm() + 1e-9
+                && p.push.normalize().dot(&v.normalize()) > 1.0 - 1e-9
+        });
+        eased += usize::from(from_overload);
+    }
+    assert!(eased >= 2, "{eased} of 16 plans were eased pushes");
+}

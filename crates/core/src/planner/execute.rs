@@ -48,6 +48,10 @@ pub(super) struct Run<'a> {
     /// blocked), with their rank and prediction: [`crate::planner::shorter`]
     /// tries them shorter.
     pub blocked: Vec<(usize, Scored)>,
+    /// Pushes predicted within the limits that their simulation put over
+    /// one, with their rank, prediction and simulated loads:
+    /// [`crate::planner::eased`] tries them eased back to the limits.
+    pub overloaded: Vec<(usize, Scored, PushLoads)>,
 }
 
 impl Run<'_> {
@@ -198,6 +202,11 @@ impl Run<'_> {
             }
             _ => None,
         };
+        if let (Some(Outcome::OverLimit), Some((_, hold)), Some(p)) =
+            (verdict, simulated, predicted)
+        {
+            self.overloaded.push((rank, *p, hold.loads));
+        }
         if let Some(outcome) = verdict {
             let ms = started.elapsed().as_secs_f64() * 1e3;
             self.note(rank, push, outcome, predicted, ms);

@@ -22,6 +22,7 @@
 
 pub mod answer;
 pub mod base;
+mod eased;
 mod execute;
 pub mod objective;
 mod observed;

@@ -15,7 +15,7 @@ use crate::planner::query::{Query, Stance, Strategy};
 use crate::planner::refine;
 use crate::planner::search::{self, SearchOptions, score, search_pushes};
 use crate::planner::seeds::{self, interleave, ranked};
-use crate::planner::shorter;
+use crate::planner::{eased, shorter};
 use crate::robot::collision::{Allowed, TreeObstacles};
 use crate::robot::motion::push_motion::Outcome;
 use crate::robot::motion::rrt::{Config, MotionValidator};
@@ -105,6 +105,7 @@ impl Planner {
             verify: query.strategy == Strategy::Model && objective.has_goal_region(),
             missed: Vec::new(),
             blocked: Vec::new(),
+            overloaded: Vec::new(),
         };
         let no_action_error = objective.residual(tree, tree.positions());
         let physics = PhysicsPredictor;
@@ -136,6 +137,11 @@ impl Planner {
             && let Some(predictor) = predictor
         {
             found = shorter::shorter(&mut run, predictor, &judged, &mut evaluations)?;
+        }
+        if found.is_none()
+            && let Some(predictor) = predictor
+        {
+            found = eased::eased(&mut run, predictor, &judged, &mut evaluations)?;
         }
         if found.is_none() {
             found = closest_miss(&mut run, no_action_error);
