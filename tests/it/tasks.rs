@@ -239,6 +239,23 @@ impl ContactPolicy for NoPolicy {
     }
 }
 
+/// A random 12-node tree with a 3 cm fruit across the middle of its last
+/// branch, to be cleared by 1 cm.
+fn fruit_task(seed: u64) -> (Tree, Objective) {
+    let (tree, _) = random_tree_and_pushes(300 + seed, 12, 1);
+    let j = tree.len() - 1;
+    let parent = tree.parent(j).unwrap();
+    let centre = nalgebra::center(&tree.position(parent), &tree.position(j));
+    let objective = Objective::Clear {
+        regions: vec![Shape::Sphere {
+            centre,
+            radius: 0.03,
+        }],
+        margin: 0.01,
+    };
+    (tree, objective)
+}
+
 /// `clear` with the simulator as predictor and a base region, on random
 /// trees with a fruit across a branch: every plan, simulated, clears the
 /// fruit by the margin and stays within the limits; pushes over a limit
@@ -251,18 +268,7 @@ fn physics_clears_a_fruit_within_the_limits() {
     };
     let (mut planned, mut tasks) = (0, 0);
     for seed in 0..6u64 {
-        let (tree, _) = random_tree_and_pushes(300 + seed, 12, 1);
-        // A fruit across the middle of the last branch.
-        let j = tree.len() - 1;
-        let parent = tree.parent(j).unwrap();
-        let centre = nalgebra::center(&tree.position(parent), &tree.position(j));
-        let objective = Objective::Clear {
-            regions: vec![Shape::Sphere {
-                centre,
-                radius: 0.03,
-            }],
-            margin: 0.01,
-        };
+        let (tree, objective) = fruit_task(seed);
         assert!(objective.residual(&tree, tree.positions()) > 0.0);
         assert!(!geometric_seeds(&tree, &objective, 6).is_empty());
         let mut query = Query::with_objective(tree.clone(), objective.clone());
@@ -406,17 +412,7 @@ fn overloaded_pushes_are_eased_back_to_the_limits() {
     };
     let mut eased = 0;
     for seed in 0..16u64 {
-        let (tree, _) = random_tree_and_pushes(300 + seed, 12, 1);
-        let j = tree.len() - 1;
-        let parent = tree.parent(j).unwrap();
-        let centre = nalgebra::center(&tree.position(parent), &tree.position(j));
-        let objective = Objective::Clear {
-            regions: vec![Shape::Sphere {
-                centre,
-                radius: 0.03,
-            }],
-            margin: 0.01,
-        };
+        let (tree, objective) = fruit_task(seed);
         let mut query = Query::with_objective(tree.clone(), objective);
         query.strategy = Strategy::Model;
         query.limits = Some(limits);

@@ -17,7 +17,8 @@
 use crate::planner::answer::PlanError;
 use crate::planner::execute::{Found, Judged, Run};
 use crate::planner::predict::Predictor;
-use crate::planner::search::{self, MIN_PUSH, Scored, score};
+use crate::planner::search::{self, MIN_PUSH, Scored};
+use crate::planner::shorter::add_shortened;
 use crate::sim::Push;
 use crate::sim::loads::PushLoads;
 
@@ -39,40 +40,15 @@ pub(super) fn eased(
     judged: &Judged<'_>,
     evaluations: &mut usize,
 ) -> Result<Option<Found>, PlanError> {
-    let query = run.query;
-    let (tree, objective) = (&query.tree, &query.objective);
-    let Some(limits) = query.limits else {
+    let Some(limits) = run.query.limits else {
         return Ok(None);
     };
-    let pushes = eased_pushes(std::mem::take(&mut run.overloaded), objective, |loads| {
+    let overloaded = std::mem::take(&mut run.overloaded);
+    let pushes = eased_pushes(overloaded, &run.query.objective, |loads| {
         (limits.max_stress / loads.peak_stress.max(1e-9))
             .min(limits.max_contact_force / loads.contact_force.max(1e-9))
     });
-    if pushes.is_empty() {
-        return Ok(None);
-    }
-    *evaluations += pushes.len();
-    let only: Vec<Push> = pushes.iter().map(|(_, p)| *p).collect();
-    let predictions = predictor.predict(tree, &only)?;
-    let scored = score(tree, objective, judged.screen, &only, predictions);
-    let mut helpful: Vec<(usize, Scored)> = pushes
-        .iter()
-        .zip(scored)
-        .filter_map(|((rank, _), s)| Some((*rank, s?)))
-        .filter(|(_, s)| s.within_limits && s.predicted_error < judged.no_action_error)
-        .collect();
-    helpful.sort_by(|a, b| search::compare(&a.1, &b.1, objective));
-    for (rank, s) in helpful.into_iter().take(EASED_EXECUTIONS) {
-        if let Some((plan, placed, simulated)) = run.try_push(rank, &s.push, Some(&s)) {
-            return Ok(Some(Found {
-                plan,
-                placed,
-                predicted: Some(s),
-                simulated,
-            }));
-        }
-    }
-    Ok(None)
+    run.try_again(&pushes, predictor, judged, evaluations, EASED_EXECUTIONS)
 }
 
 /// The eased pushes of the [`EASED_SOURCES`] best distinct overloaded
@@ -86,32 +62,19 @@ fn eased_pushes(
 ) -> Vec<(usize, Push)> {
     overloaded.sort_by(|a, b| search::compare(&a.1, &b.1, objective));
     let mut out: Vec<(usize, Push)> = Vec::new();
-    let mut sources = 0;
+    let mut sources: Vec<Push> = Vec::new();
     for (rank, s, loads) in overloaded {
-        if sources == EASED_SOURCES {
+        if sources.len() == EASED_SOURCES {
             break;
         }
         let push = s.push;
-        let length = push.vector.norm();
         let seen = |p: &Push| p.node == push.node && (p.vector - push.vector).norm() < 1e-3;
-        if length <= MIN_PUSH + 1e-9 || out.iter().any(|(_, p)| seen(p)) {
+        if push.vector.norm() <= MIN_PUSH + 1e-9 || sources.iter().any(seen) {
             continue;
         }
-        sources += 1;
+        sources.push(push);
         let share = room(&loads).min(1.0);
-        for f in EASED_FACTORS {
-            let to = (length * share * f).max(MIN_PUSH);
-            let eased = Push {
-                node: push.node,
-                vector: push.vector * (to / length),
-            };
-            let repeated = out
-                .iter()
-                .any(|(_, p)| p.node == eased.node && (p.vector - eased.vector).norm() < 1e-3);
-            if !repeated {
-                out.push((rank, eased));
-            }
-        }
+        add_shortened(&mut out, rank, &push, EASED_FACTORS.map(|f| share * f));
     }
     out
 }

@@ -4,11 +4,13 @@
 use std::time::{Duration, Instant};
 
 use crate::planner::answer::Attempt;
+use crate::planner::answer::PlanError;
 use crate::planner::base::{self, BasePose};
 use crate::planner::objective::{Limits, SATISFIED};
 use crate::planner::placed::{Placed, Planner};
+use crate::planner::predict::Predictor;
 use crate::planner::query::{Query, Stance};
-use crate::planner::search::Scored;
+use crate::planner::search::{self, Scored, score};
 use crate::robot::collision::{Allowed, CollisionModel, TreeObstacles};
 use crate::robot::motion::push_motion::{
     Outcome, PlanOptions, PushPlan, PushSnapshots, execute, reach, reachable,
@@ -138,6 +140,47 @@ impl Run<'_> {
             self.rest,
             push,
         )
+    }
+
+    /// Predicts `pushes` (each with its rank) again, keeps those that help
+    /// and pass the screen, and tries the best of them, at most
+    /// `executions`, best predicted first, until one is carried out: the
+    /// retry of [`crate::planner::shorter`] and [`crate::planner::eased`].
+    pub fn try_again(
+        &mut self,
+        pushes: &[(usize, Push)],
+        predictor: &dyn Predictor,
+        judged: &Judged<'_>,
+        evaluations: &mut usize,
+        executions: usize,
+    ) -> Result<Option<Found>, PlanError> {
+        if pushes.is_empty() {
+            return Ok(None);
+        }
+        let query = self.query;
+        let (tree, objective) = (&query.tree, &query.objective);
+        *evaluations += pushes.len();
+        let only: Vec<Push> = pushes.iter().map(|(_, p)| *p).collect();
+        let predictions = predictor.predict(tree, &only)?;
+        let scored = score(tree, objective, judged.screen, &only, predictions);
+        let mut helpful: Vec<(usize, Scored)> = pushes
+            .iter()
+            .zip(scored)
+            .filter_map(|((rank, _), s)| Some((*rank, s?)))
+            .filter(|(_, s)| s.within_limits && s.predicted_error < judged.no_action_error)
+            .collect();
+        helpful.sort_by(|a, b| search::compare(&a.1, &b.1, objective));
+        for (rank, s) in helpful.into_iter().take(executions) {
+            if let Some((plan, placed, simulated)) = self.try_push(rank, &s.push, Some(&s)) {
+                return Ok(Some(Found {
+                    plan,
+                    placed,
+                    predicted: Some(s),
+                    simulated,
+                }));
+            }
+        }
+        Ok(None)
     }
 
     /// Tries to carry out `push` from each placement; records the attempt.

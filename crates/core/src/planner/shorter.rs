@@ -16,7 +16,7 @@
 use crate::planner::answer::PlanError;
 use crate::planner::execute::{Found, Judged, Run};
 use crate::planner::predict::Predictor;
-use crate::planner::search::{self, MIN_PUSH, Scored, score};
+use crate::planner::search::{self, MIN_PUSH, Scored};
 use crate::sim::Push;
 
 /// Blocked pushes shortened, best predicted first.
@@ -35,34 +35,8 @@ pub(super) fn shorter(
     judged: &Judged<'_>,
     evaluations: &mut usize,
 ) -> Result<Option<Found>, PlanError> {
-    let query = run.query;
-    let (tree, objective) = (&query.tree, &query.objective);
-    let pushes = shortened(std::mem::take(&mut run.blocked), objective);
-    if pushes.is_empty() {
-        return Ok(None);
-    }
-    *evaluations += pushes.len();
-    let only: Vec<Push> = pushes.iter().map(|(_, p)| *p).collect();
-    let predictions = predictor.predict(tree, &only)?;
-    let scored = score(tree, objective, judged.screen, &only, predictions);
-    let mut helpful: Vec<(usize, Scored)> = pushes
-        .iter()
-        .zip(scored)
-        .filter_map(|((rank, _), s)| Some((*rank, s?)))
-        .filter(|(_, s)| s.within_limits && s.predicted_error < judged.no_action_error)
-        .collect();
-    helpful.sort_by(|a, b| search::compare(&a.1, &b.1, objective));
-    for (rank, s) in helpful.into_iter().take(SHORTER_EXECUTIONS) {
-        if let Some((plan, placed, simulated)) = run.try_push(rank, &s.push, Some(&s)) {
-            return Ok(Some(Found {
-                plan,
-                placed,
-                predicted: Some(s),
-                simulated,
-            }));
-        }
-    }
-    Ok(None)
+    let pushes = shortened(std::mem::take(&mut run.blocked), &run.query.objective);
+    run.try_again(&pushes, predictor, judged, evaluations, SHORTER_EXECUTIONS)
 }
 
 /// The shortened pushes of the [`SHORTER_SOURCES`] best distinct blocked
@@ -89,21 +63,33 @@ fn shortened(
         if length <= MIN_PUSH + 1e-9 {
             continue;
         }
-        for f in SHORTER_FACTORS {
-            let to = (length * f).max(MIN_PUSH);
-            let short = Push {
-                node: push.node,
-                vector: push.vector * (to / length),
-            };
-            let repeated = out
-                .iter()
-                .any(|(_, p)| p.node == short.node && (p.vector - short.vector).norm() < 1e-3);
-            if !repeated {
-                out.push((rank, short));
-            }
-        }
+        add_shortened(&mut out, rank, &push, SHORTER_FACTORS);
     }
     out
+}
+
+/// Adds `push` at each of `shares` of its length (never below
+/// [`MIN_PUSH`]) to `out` with `rank`, leaving out pushes already there.
+pub(super) fn add_shortened(
+    out: &mut Vec<(usize, Push)>,
+    rank: usize,
+    push: &Push,
+    shares: impl IntoIterator<Item = f64>,
+) {
+    let length = push.vector.norm();
+    for f in shares {
+        let to = (length * f).max(MIN_PUSH);
+        let short = Push {
+            node: push.node,
+            vector: push.vector * (to / length),
+        };
+        let repeated = out
+            .iter()
+            .any(|(_, p)| p.node == short.node && (p.vector - short.vector).norm() < 1e-3);
+        if !repeated {
+            out.push((rank, short));
+        }
+    }
 }
 
 #[cfg(test)]
