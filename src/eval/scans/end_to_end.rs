@@ -3,8 +3,8 @@
 //! margin grown by [`EXTRACTED_MARGIN`], [`EXTRACTED_STRESS_RESERVE`] of the
 //! stress limit kept in reserve) and carried out on the true tree
 //! where a gripper closing at the planned contact would hold it
-//! ([`held_at`]) as a guarded move that stops at the contact-force limit
-//! ([`guarded_push`]), against the same planning on the true tree; each
+//! ([`held_at`]) as a guarded move that stops at the plan's guard force
+//! ([`Limits::guard_force`], [`guarded_push`]), against the same planning on the true tree; each
 //! task the extracted tree misses is counted with why ([`Missed`]).
 
 use nalgebra::Point3;
@@ -36,8 +36,8 @@ pub struct EndToEnd {
     /// tree's does).
     pub extracted_solved_any: usize,
     /// Extracted-tree pushes over the load limits on the true tree, carried
-    /// out as guarded moves that stop at the contact-force limit
-    /// ([`guarded_push`]): what an arm with a wrist force sensor does.
+    /// out as guarded moves that stop at the plan's guard force
+    /// ([`Limits::guard_force`], [`guarded_push`]): what an arm with a wrist force sensor does.
     pub over_limit: usize,
     /// The same pushes carried out to their end whatever the force.
     pub over_limit_unguarded: usize,
