@@ -65,10 +65,12 @@ pub fn default_conditions() -> Vec<Condition> {
     out
 }
 
-/// The test split's trees of each size (as `dataset collect` draws them).
-pub fn test_trees(sizes: &[usize], per_size: usize) -> anyhow::Result<Vec<Tree>> {
+/// The trees of `split` of each size (as `dataset collect` draws them):
+/// the test split's for the report, the train split's to develop on
+/// without looking at the test split.
+pub fn split_trees(split: Split, sizes: &[usize], per_size: usize) -> anyhow::Result<Vec<Tree>> {
     let config = CollectConfig::default();
-    let base = derive_seed(config.seed, &[Split::Test.seed_part()]);
+    let base = derive_seed(config.seed, &[split.seed_part()]);
     let mut out = Vec::new();
     for &n in sizes {
         let set = tree_set(

@@ -5,9 +5,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
+use treemanip::dataset::Split;
 use treemanip::eval::scans::{
     EndToEnd, LEAVES_PER_TWIG, PEERS, default_conditions, end_to_end, evaluate_condition,
-    independent_rows, peer_row, test_trees, to_markdown, write_clouds,
+    independent_rows, peer_row, split_trees, to_markdown, write_clouds,
 };
 use treemanip::planner::objective::{DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS, Limits};
 use treemanip::scan::Sensor;
@@ -22,6 +23,10 @@ pub struct EvalScansArgs {
     /// Trees per size.
     #[arg(long, default_value_t = 2)]
     per_size: usize,
+    /// Whose trees: `test` (the report's) or `train` (to develop a change
+    /// on without looking at the test split).
+    #[arg(long, default_value = "test")]
+    split: Split,
     /// `clear` tasks per tree, end to end.
     #[arg(long, default_value_t = 3)]
     tasks_per_tree: usize,
@@ -51,7 +56,7 @@ pub struct EvalScansArgs {
 
 pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
-    let trees = test_trees(&args.sizes.0, args.per_size)?;
+    let trees = split_trees(args.split, &args.sizes.0, args.per_size)?;
     let limits = Limits {
         max_stress: DEFAULT_MAX_STRESS,
         max_contact_force: DEFAULT_MAX_CONTACT_FORCE,
@@ -112,7 +117,7 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
         rows.push(row);
     }
     let mut md = format!(
-        "# Trees from scans\n\nRegenerate: `treemanip eval scans --sizes {}..={} --per-size {} --tasks-per-tree {} --seed {}{}` ({} test-split trees; {:.0} s on this machine). DIR holds the clouds an earlier run's `--write-clouds DIR` wrote, with `scripts/scan-peers DIR`'s answers; IND what `scripts/scan-independent IND` and then `scripts/scan-peers IND` wrote.\n\nSynthetic scans (`treemanip trees scan`): viewpoints 1.5 m from the trunk at half the tree's height, 40,000 surface samples per viewpoint before occlusion, depth noise σ at that range growing with the square of range; leaves are 5 cm discs near the twigs; every point has its colour (bark brown, leaf green) under varied light, kept only in the RGB conditions, where the extraction drops foliage-green points. Scores as in `crates/core/src/scan/score.rs` (Smart-Tree's recall and precision at t × the true radius).\n\n",
+        "# Trees from scans\n\nRegenerate: `treemanip eval scans --sizes {}..={} --per-size {} --tasks-per-tree {} --seed {}{}` ({} {}-split trees; {:.0} s on this machine). DIR holds the clouds an earlier run's `--write-clouds DIR` wrote, with `scripts/scan-peers DIR`'s answers; IND what `scripts/scan-independent IND` and then `scripts/scan-peers IND` wrote.\n\nSynthetic scans (`treemanip trees scan`): viewpoints 1.5 m from the trunk at half the tree's height, 40,000 surface samples per viewpoint before occlusion, depth noise σ at that range growing with the square of range; leaves are 5 cm discs near the twigs; every point has its colour (bark brown, leaf green) under varied light, kept only in the RGB conditions, where the extraction drops foliage-green points. Scores as in `crates/core/src/scan/score.rs` (Smart-Tree's recall and precision at t × the true radius).\n\n",
         args.sizes.0.first().copied().unwrap_or(0),
         args.sizes.0.last().copied().unwrap_or(0),
         args.per_size,
@@ -124,11 +129,13 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
             args.independent
                 .as_ref()
                 .map(|_| " --independent IND".to_owned()),
+            (args.split == Split::Train).then(|| " --split train".to_owned()),
         ]
         .into_iter()
         .flatten()
         .collect::<String>(),
         trees.len(),
+        args.split.name(),
         started.elapsed().as_secs_f64()
     );
     md += &to_markdown(&rows);

@@ -279,7 +279,8 @@ pub fn held_at(tree: &Tree, at: &Point3<f64>) -> Option<(Tree, usize)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::scans::{Condition, evaluate_condition, test_trees};
+    use crate::dataset::Split;
+    use crate::eval::scans::{Condition, evaluate_condition, split_trees};
     use crate::planner::objective::{DEFAULT_MAX_CONTACT_FORCE, DEFAULT_MAX_STRESS};
     use crate::scan::Sensor;
 
@@ -329,7 +330,7 @@ mod tests {
     /// that every tree is extracted.
     #[test]
     fn every_task_the_extracted_tree_misses_is_counted_with_why() {
-        let trees = test_trees(&[12, 16], 2).unwrap();
+        let trees = split_trees(Split::Test, &[12, 16], 2).unwrap();
         let condition = Condition {
             views: 3,
             noise: 0.002,

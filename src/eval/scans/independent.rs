@@ -144,7 +144,8 @@ pub fn independent_rows(dir: &Path, peers: &[Peer]) -> anyhow::Result<Vec<Condit
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::scans::{PEERS, test_trees};
+    use crate::dataset::Split;
+    use crate::eval::scans::{PEERS, split_trees};
     use crate::scan::{ScanParams, scan};
 
     #[test]
@@ -174,7 +175,7 @@ mod tests {
     /// answers has no row.
     #[test]
     fn independent_cases_are_read_and_scored_against_their_cylinders() {
-        let tree = &test_trees(&[14], 1).unwrap()[0];
+        let tree = &split_trees(Split::Test, &[14], 1).unwrap()[0];
         let truth = Skeleton::of_tree(tree);
         let scratch = tempfile::tempdir().unwrap();
         let dir = scratch.path();

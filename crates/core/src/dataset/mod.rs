@@ -45,6 +45,16 @@ impl Split {
     }
 }
 
+impl std::str::FromStr for Split {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        [Split::Train, Split::Test]
+            .into_iter()
+            .find(|split| split.name() == s)
+            .ok_or_else(|| format!("unknown split {s:?} (train or test)"))
+    }
+}
+
 /// One push episode on one of the file's trees.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Episode {

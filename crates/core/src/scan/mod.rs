@@ -16,6 +16,7 @@
 //! Documentation beside the code: `docs/scans.md`.
 
 pub mod base;
+pub mod bridge;
 pub mod circle_fit;
 pub mod cloud;
 pub mod corner;

@@ -12,7 +12,8 @@
 //!    large part; bridge gaps to other parts (an occluded stretch of
 //!    branch) only when the part is shaped like a branch or larger than a
 //!    leaf and the gap is at most `max_gap` (at least [`LEAFY_MAX_GAP`]
-//!    once leaves went by shape); what stays apart is a fragment. A second
+//!    once leaves went by shape), or the dropped leaves cover the gap
+//!    ([`crate::scan::bridge`]); what stays apart is a fragment. A second
 //!    large part standing on the ground is a second tree: refused.
 //! 5. Level sets of the geodesic distance from the trunk's base give the
 //!    fine skeleton ([`crate::scan::levels`]), pruned of stubs shorter than
@@ -27,7 +28,7 @@
 use nalgebra::{Point3, Vector3};
 use petgraph::unionfind::UnionFind;
 
-use crate::geometry::principal::principal;
+use crate::scan::bridge::{COVERED_MAX_GAP, LeafCover, MIN_PART_VOXELS, bridges};
 use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread};
 use crate::scan::fine::{FineSkeleton, fine_skeleton};
 use crate::scan::foliage::{FoliageClassifier, LEAFY_SHARE, call_foliage, is_foliage};
@@ -182,17 +183,6 @@ pub const LEAFY_MAX_GAP: f64 = 0.15;
 const LINK_VOXELS: f64 = 3.0;
 /// Neighbours per cube in the graph.
 const NEIGHBOURS: usize = 12;
-/// A part needs this many cubes to be bridged to the tree.
-const MIN_PART_VOXELS: usize = 8;
-/// A part is bridged when its length is this many times its width.
-const ELONGATION: f64 = 2.5;
-/// ... or when it spreads this much (m, standard deviation along its
-/// longest axis: a straight 14 cm stretch, a 16 cm disc): more than a leaf
-/// (2.5 cm radius, 1.25 cm), a cluster of a twig's leaves or a fruit.
-/// Without it a fork seen apart from the tree was dropped as a fragment:
-/// leafy one-view scans lost 8 points of recall at t = 1.0 that way
-/// (0.697 with every leaf point removed; 0.778 bridged).
-const SUBTREE_SPREAD: f64 = 0.04;
 /// Cubes double until the largest connected part holds this share of the
 /// points ...
 const CONNECTED_SHARE: f64 = 0.3;
@@ -256,30 +246,36 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
     dropped.outside_crop = cloud.len() - inside.len();
     // With colours, foliage goes first: green points are leaves.
     let colour = params.foliage != FoliageFilter::Off && cloud.colors.is_some();
-    let mut kept: Vec<Point3<f64>> = inside
-        .iter()
-        .filter(|&&i| {
-            let leaf = colour && cloud.colors.as_ref().is_some_and(|c| is_foliage(c[i]));
-            dropped.foliage += usize::from(leaf);
-            !leaf
-        })
-        .map(|&i| cloud.points[i])
-        .collect();
+    // The points dropped as leaves are kept aside: where they cover a gap,
+    // the gap is a stretch of branch they hid ([`crate::scan::bridge`]).
+    let (mut leaves, mut kept) = (Vec::new(), Vec::with_capacity(inside.len()));
+    for &i in &inside {
+        let leaf = colour && cloud.colors.as_ref().is_some_and(|c| is_foliage(c[i]));
+        if leaf { &mut leaves } else { &mut kept }.push(cloud.points[i]);
+    }
+    dropped.foliage = leaves.len();
     let mut warnings = Vec::new();
     // Without, by shape.
     let mut max_gap = params.max_gap;
     let mut leaves_by_shape = false;
+    // Each kept point's chance of being leaf, where leaves went by shape.
+    let mut leaf_chance: Option<Vec<f64>> = None;
     if params.foliage != FoliageFilter::Off && cloud.colors.is_none() && kept.len() >= MIN_POINTS {
         let min_share = (params.foliage == FoliageFilter::Auto).then_some(LEAFY_SHARE);
         if let Some(call) = call_foliage(&kept, &up, FoliageClassifier::shipped(), min_share) {
-            let before = kept.len();
-            kept = kept
-                .iter()
-                .zip(&call.foliage)
-                .filter(|(_, f)| !**f)
-                .map(|(p, _)| *p)
-                .collect();
-            dropped.foliage += before - kept.len();
+            let before = leaves.len();
+            let (mut bark, mut chances) = (Vec::with_capacity(kept.len()), Vec::new());
+            for ((p, &f), &c) in kept.iter().zip(&call.foliage).zip(&call.chance) {
+                if f {
+                    leaves.push(*p);
+                } else {
+                    bark.push(*p);
+                    chances.push(c);
+                }
+            }
+            dropped.foliage += leaves.len() - before;
+            kept = bark;
+            leaf_chance = Some(chances);
             leaves_by_shape = true;
             max_gap = max_gap.max(LEAFY_MAX_GAP);
             warnings.push(format!(
@@ -385,26 +381,40 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
     };
 
     // Bridge parts to the tree (Kruskal over the parts' closest pairs).
-    let bridges = bridges(points, &labels, &part_voxels, main, max_gap);
+    let cover = LeafCover::new(
+        &leaves,
+        leaf_chance.map(|c| cube_means(&c, &voxels.of_point, points.len())),
+    );
+    let bridges = bridges(points, &labels, &part_voxels, main, max_gap, cover.as_ref());
     let mut sets = UnionFind::<usize>::new(parts);
-    let mut edges: Vec<(usize, usize, f64)> = Vec::new();
-    let mut largest_bridge: f64 = 0.0;
-    for &(d, a, b) in &bridges {
-        if sets.union(labels[a], labels[b]) {
-            edges.push((a, b, d));
-            largest_bridge = largest_bridge.max(d);
+    let mut edges = Vec::new();
+    for b in &bridges {
+        if sets.union(labels[b.from], labels[b.to]) {
+            edges.push(*b);
         }
     }
     // Which parts the bridges joined to the tree's, decided once.
     let in_tree: Vec<bool> = (0..parts).map(|l| sets.equiv(l, main)).collect();
-    let tree_edges: Vec<_> = edges.into_iter().filter(|e| in_tree[labels[e.0]]).collect();
-    if !tree_edges.is_empty() {
+    edges.retain(|b| in_tree[labels[b.from]]);
+    if !edges.is_empty() {
+        let largest = edges.iter().map(|b| b.gap).fold(0.0, f64::max);
+        let under = edges.iter().filter(|b| b.under_leaves).count();
         warnings.push(format!(
-            "{} gaps in the points were bridged (the largest {:.1} cm): occluded or unsampled stretches of branch",
-            tree_edges.len(),
-            largest_bridge * 100.0
+            "{} gaps in the points were bridged (the largest {:.1} cm): occluded or unsampled stretches of branch{}",
+            edges.len(),
+            largest * 100.0,
+            if under > 0 {
+                format!(
+                    "; {under} of them under leaves (up to {:.0} cm), where only a few centimetres of a twig showed between its leaves: their branches are guessed straight across",
+                    COVERED_MAX_GAP * 100.0
+                )
+            } else {
+                String::new()
+            }
         ));
     }
+    let tree_edges: Vec<(usize, usize, f64)> =
+        edges.iter().map(|b| (b.from, b.to, b.gap)).collect();
     let main_low = (0..parts)
         .filter(|&l| in_tree[l])
         .map(|l| part_low[l])
@@ -512,87 +522,18 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
     })
 }
 
-/// The closest pair of points of every two parts (of at least
-/// [`MIN_PART_VOXELS`] cubes) at most `max_gap` apart, shortest first.
-fn bridges(
-    points: &[Point3<f64>],
-    labels: &[usize],
-    part_voxels: &[usize],
-    main: usize,
-    max_gap: f64,
-) -> Vec<(f64, usize, usize)> {
-    let parts = part_voxels.len();
-    let mut of_part: Vec<Vec<usize>> = vec![Vec::new(); parts];
-    for (i, &l) in labels.iter().enumerate() {
-        if part_voxels[l] >= MIN_PART_VOXELS {
-            of_part[l].push(i);
-        }
+/// Each cube's mean of a per-point value.
+fn cube_means(values: &[f64], of_point: &[usize], cubes: usize) -> Vec<f64> {
+    let mut sum = vec![0.0; cubes];
+    let mut count = vec![0usize; cubes];
+    for (&v, &c) in values.iter().zip(of_point) {
+        sum[c] += v;
+        count[c] += 1;
     }
-    // A part is bridged only when it is shaped like a stretch of branch
-    // (at least ELONGATION times longer than wide) or larger than any leaf
-    // or fruit (a fork or a whole subtree seen apart from the tree behind
-    // leaves is not elongated): a leaf or a fruit seen apart from its twig
-    // is neither.
-    let branch_like = |l: usize| {
-        let pts: Vec<Point3<f64>> = of_part[l].iter().map(|&i| points[i]).collect();
-        let spread = principal(&pts).spread;
-        spread[0] >= ELONGATION * spread[1] || spread[0] >= SUBTREE_SPREAD
-    };
-    let big: Vec<usize> = (0..parts)
-        .filter(|&l| !of_part[l].is_empty() && (l == main || branch_like(l)))
-        .collect();
-    if big.len() < 2 || max_gap <= 0.0 {
-        return Vec::new();
-    }
-    let boxes: Vec<(Vector3<f64>, Vector3<f64>)> = big
-        .iter()
-        .map(|&l| {
-            of_part[l].iter().fold(
-                (
-                    Vector3::repeat(f64::INFINITY),
-                    Vector3::repeat(f64::NEG_INFINITY),
-                ),
-                |(lo, hi), &i| (lo.inf(&points[i].coords), hi.sup(&points[i].coords)),
-            )
-        })
-        .collect();
-    let trees: Vec<PointIndex> = big
-        .iter()
-        .map(|&l| {
-            let pts: Vec<_> = of_part[l].iter().map(|&i| points[i]).collect();
-            PointIndex::new(&pts)
-        })
-        .collect();
-    let mut out = Vec::new();
-    for x in 0..big.len() {
-        for y in x + 1..big.len() {
-            let (a, b) = (&boxes[x], &boxes[y]);
-            let apart = (0..3).any(|k| a.0[k] > b.1[k] + max_gap || b.0[k] > a.1[k] + max_gap);
-            if apart {
-                continue;
-            }
-            // Query the smaller part's points in the larger part's tree.
-            let (s, t) = if of_part[big[x]].len() <= of_part[big[y]].len() {
-                (x, y)
-            } else {
-                (y, x)
-            };
-            let best = of_part[big[s]]
-                .iter()
-                .map(|&i| {
-                    let (j, d) = trees[t].nearest(&points[i]);
-                    (d, i, of_part[big[t]][j])
-                })
-                .min_by(|p, q| p.0.total_cmp(&q.0));
-            if let Some(best) = best
-                && best.0 <= max_gap
-            {
-                out.push(best);
-            }
-        }
-    }
-    out.sort_by(|p, q| p.0.total_cmp(&q.0));
-    out
+    sum.iter()
+        .zip(&count)
+        .map(|(s, &n)| s / n.max(1) as f64)
+        .collect()
 }
 
 #[cfg(test)]

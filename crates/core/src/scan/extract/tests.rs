@@ -4,6 +4,7 @@ use super::*;
 use crate::scan::foliage::is_foliage;
 use crate::scan::scanner::{Origin, ScanParams, scan};
 use crate::scan::score::score;
+use crate::scan::skeleton::point_segment;
 use crate::tree::{ScaParams, generate};
 
 #[test]
@@ -113,6 +114,109 @@ fn a_fork_seen_apart_from_its_trunk_is_bridged() {
     let s = score(&Skeleton::of_tree(&tree), &found.skeleton);
     assert!(s.recall[1] > 0.9, "{s:?}");
     assert!(found.warnings.iter().any(|w| w.contains("bridged")));
+}
+
+/// A twig hidden by its leaves but for its last 2 cm: that stub is too
+/// short to look like a branch and 20 cm from the stem, so across bare air
+/// it is a fragment; where the leaves dropped from the cloud cover the gap,
+/// it is bridged to the stem and the tree reaches it, and the warning says
+/// so. Leaves beside the gap, not over it, bridge nothing.
+#[test]
+fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
+    use crate::tree::Branch;
+    let branch = |radius: f64, length: f64| {
+        Some(Branch {
+            radius,
+            length,
+            stiffness: 10.0,
+            damping: 1.0,
+        })
+    };
+    let (fork, tip) = (Point3::new(0.0, 0.0, 0.4), Point3::new(0.25, 0.0, 0.43));
+    let tree = crate::tree::Tree::new(
+        vec![Point3::origin(), Point3::new(0.0, 0.0, 0.6), fork, tip],
+        vec![None, Some(0), Some(0), Some(2)],
+        vec![
+            None,
+            branch(0.02, 0.6),
+            branch(0.02, 0.4),
+            branch(0.005, (tip - fork).norm()),
+        ],
+    )
+    .unwrap();
+    let scanned = scan(
+        &tree,
+        &ScanParams {
+            viewpoints: 3,
+            noise: 0.001,
+            samples_per_view: 30_000,
+            seed: 5,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    // Along the twig, 0 at the fork and 1 at the tip.
+    let along = |p: &Point3<f64>| (p - fork).dot(&(tip - fork)) / (tip - fork).norm_squared();
+    let stub = fork + (tip - fork) * 0.965;
+    let bark: Vec<Point3<f64>> = scanned
+        .cloud
+        .points
+        .iter()
+        .zip(&scanned.origins)
+        .filter(|(p, o)| **o != Origin::Branch(3) || along(p) >= 0.93)
+        .map(|(p, _)| *p)
+        .collect();
+    // Leaves: 2.5 cm discs 2 cm beside the hidden stretch, every 2 cm.
+    let leaves_at = |shift: Vector3<f64>| -> Vec<Point3<f64>> {
+        let mut out = Vec::new();
+        for k in 0..14 {
+            let centre =
+                fork + (tip - fork) * (0.06 + 0.062 * k as f64) + Vector3::y() * 0.02 + shift;
+            for i in -8i32..=8 {
+                for j in -8i32..=8 {
+                    let (u, v) = (0.003 * i as f64, 0.003 * j as f64);
+                    if u * u + v * v <= 0.025 * 0.025 {
+                        out.push(centre + Vector3::new(u, 0.0, v));
+                    }
+                }
+            }
+        }
+        out
+    };
+    let coloured = |leaves: Vec<Point3<f64>>| {
+        let mut cloud =
+            PointCloud::new(bark.iter().copied().chain(leaves.iter().copied()).collect());
+        cloud.colors = Some(
+            std::iter::repeat_n([110, 80, 50], bark.len())
+                .chain(std::iter::repeat_n([40, 160, 40], leaves.len()))
+                .collect(),
+        );
+        extract(&cloud, &ExtractParams::default()).unwrap()
+    };
+    let reaches_stub = |found: &Extraction| {
+        let s = &found.skeleton;
+        (0..s.positions.len())
+            .filter_map(|j| {
+                s.parents[j].map(|p| point_segment(&stub, &s.positions[p], &s.positions[j]).0)
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+
+    let covered = coloured(leaves_at(Vector3::zeros()));
+    assert!(reaches_stub(&covered) < 0.015, "{}", reaches_stub(&covered));
+    assert!(
+        covered.warnings.iter().any(|w| w.contains("under leaves")),
+        "{:?}",
+        covered.warnings
+    );
+    for found in [
+        coloured(Vec::new()),
+        coloured(leaves_at(Vector3::y() * 0.15)),
+    ] {
+        assert!(reaches_stub(&found) > 0.05, "{}", reaches_stub(&found));
+        assert!(found.dropped.fragments > 0, "{:?}", found.dropped);
+        assert!(!found.warnings.iter().any(|w| w.contains("under leaves")));
+    }
 }
 
 /// Without colours, a leafy cloud loses its leaves by shape (counted

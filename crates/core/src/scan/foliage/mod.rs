@@ -196,6 +196,9 @@ pub fn stage_inputs(f: &Features, c: &ContextFeatures) -> [f32; STAGE_INPUTS] {
 pub struct FoliageCall {
     /// Per point.
     pub foliage: Vec<bool>,
+    /// Per point, the smoothed chance that it is leaf (0-1; foliage above
+    /// [`THRESHOLD`]).
+    pub chance: Vec<f64>,
     /// The share of the points called foliage.
     pub share: f64,
 }
@@ -252,19 +255,24 @@ pub fn call_foliage(
     }
     let (features, neighbours) = features_and_neighbours_with(&grids, &coarse, up);
     let chances = classifier.chances(&grids, (&features, &neighbours), usize::MAX);
-    let leafy: Vec<bool> = voxels
+    let smoothed: Vec<f64> = voxels
         .centres
         .par_iter()
         .map(|c| {
             let near = grids
                 .fine_index
                 .near(c, SMOOTHING_NEIGHBOURS, SMOOTHING_RADIUS);
-            mean_chance(&near, &chances, &voxels.counts) > THRESHOLD
+            mean_chance(&near, &chances, &voxels.counts)
         })
         .collect();
-    let foliage: Vec<bool> = voxels.of_point.iter().map(|&v| leafy[v]).collect();
+    let chance: Vec<f64> = voxels.of_point.iter().map(|&v| smoothed[v]).collect();
+    let foliage: Vec<bool> = chance.iter().map(|&c| c > THRESHOLD).collect();
     let share = foliage.iter().filter(|&&f| f).count() as f64 / points.len().max(1) as f64;
-    Some(FoliageCall { foliage, share })
+    Some(FoliageCall {
+        foliage,
+        chance,
+        share,
+    })
 }
 
 #[cfg(test)]
