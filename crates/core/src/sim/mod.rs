@@ -125,6 +125,10 @@ pub enum SimError {
     },
     #[error("the contact constraints are degenerate for this push")]
     Degenerate,
+    #[error(
+        "the simulation ran past its deadline ({iterations} solver iterations done): the path is too deep to solve in the time given"
+    )]
+    OutOfTime { iterations: usize },
 }
 
 impl SimError {
@@ -140,6 +144,7 @@ impl SimError {
             SimError::OverRotated { .. } => "over_rotated",
             SimError::NotConverged { .. } => "not_converged",
             SimError::Degenerate => "degenerate",
+            SimError::OutOfTime { .. } => "out_of_time",
         }
     }
 }
@@ -374,6 +379,7 @@ fn solve_contact(
             constraint_residual,
         },
         SolveError::Degenerate => SimError::Degenerate,
+        SolveError::OutOfTime { iterations } => SimError::OutOfTime { iterations },
     })?;
     Ok(Solved {
         theta: to_theta(chain, &solution.x),

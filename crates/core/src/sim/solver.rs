@@ -16,6 +16,8 @@
 //! a second-order correction against the Maratos effect. Convergence is
 //! quadratic near the solution; the report gives the final residuals.
 
+use std::time::Instant;
+
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
 /// c(x) and its Jacobian (rows × n).
@@ -32,6 +34,12 @@ pub struct SolverOptions {
     /// … or the Newton step is below this, relative to max(1, |x|∞): the
     /// minimum is found to rounding, whatever the gradient test says.
     pub step_tolerance: f64,
+    /// Give up with [`SolveError::OutOfTime`] once this passes: checked
+    /// before each iteration and between the Hessian's columns, so a
+    /// caller's deadline bounds the work to one Newton step's linear
+    /// algebra beyond it (a 512-joint path's 1,536 unknowns take seconds a
+    /// step).
+    pub deadline: Option<Instant>,
 }
 
 impl Default for SolverOptions {
@@ -41,6 +49,7 @@ impl Default for SolverOptions {
             constraint_tolerance: 1e-12,
             stationarity_tolerance: 1e-11,
             step_tolerance: 1e-12,
+            deadline: None,
         }
     }
 }
@@ -68,6 +77,8 @@ pub enum SolveError {
     },
     #[error("the constraints are degenerate (their Jacobian lost rank)")]
     Degenerate,
+    #[error("the deadline passed after {iterations} iterations")]
+    OutOfTime { iterations: usize },
 }
 
 /// `eval(x)` returns c(x) and its Jacobian (rows × n); starts at x = 0.
@@ -90,7 +101,15 @@ pub fn solve_from(
     let mut lambda = least_squares_multipliers(&jac, &x).ok_or(SolveError::Degenerate)?;
     let mut penalty = 1.0f64;
     let mut last = (f64::INFINITY, f64::INFINITY);
+    let out_of_time = |iterations| {
+        opts.deadline
+            .is_some_and(|d| Instant::now() > d)
+            .then_some(SolveError::OutOfTime { iterations })
+    };
     for iteration in 0..=opts.max_iterations {
+        if let Some(e) = out_of_time(iteration) {
+            return Err(e);
+        }
         let stationarity = stationarity_residual(&x, &jac, &lambda);
         let constraint = c.amax();
         last = (constraint, stationarity);
@@ -106,7 +125,10 @@ pub fn solve_from(
         if iteration == opts.max_iterations {
             break;
         }
-        let hessian = lagrangian_hessian(&x, &lambda, eval);
+        let hessian =
+            lagrangian_hessian(&x, &lambda, eval, opts.deadline).ok_or(SolveError::OutOfTime {
+                iterations: iteration,
+            })?;
         let (step, new_lambda) =
             newton_kkt_step(&x, &c, &jac, &hessian).ok_or(SolveError::Degenerate)?;
         penalty = penalty.max(2.0 * new_lambda.amax() + 1e-3);
@@ -219,10 +241,18 @@ fn min_norm_correction(jac: &DMatrix<f64>, c: &DVector<f64>) -> Option<DVector<f
 }
 
 /// I + Σ λ_r ∇²c_r, the curvature term by central differences of Jᵀλ.
-fn lagrangian_hessian(x: &DVector<f64>, lambda: &DVector<f64>, eval: &Constraints) -> DMatrix<f64> {
+fn lagrangian_hessian(
+    x: &DVector<f64>,
+    lambda: &DVector<f64>,
+    eval: &Constraints,
+    deadline: Option<Instant>,
+) -> Option<DMatrix<f64>> {
     let n = x.len();
     let mut h = DMatrix::identity(n, n);
     for i in 0..n {
+        if i % 64 == 0 && deadline.is_some_and(|d| Instant::now() > d) {
+            return None;
+        }
         let step = 1e-5 * x[i].abs().max(1.0);
         let mut plus = x.clone();
         plus[i] += step;
@@ -235,7 +265,7 @@ fn lagrangian_hessian(x: &DVector<f64>, lambda: &DVector<f64>, eval: &Constraint
             h[(r, i)] += column[r];
         }
     }
-    (&h + h.transpose()) * 0.5
+    Some((&h + h.transpose()) * 0.5)
 }
 
 /// Null-space solution of the Newton-KKT system

@@ -9,10 +9,11 @@
 //! this failed: 0.7 % of slot and 4 % of pinned pushes were reported as not
 //! converged, most of them with a constraint residual of 0.
 
+use nalgebra::{Point3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use treemanip_core::sim::sampling::PushDistribution;
-use treemanip_core::sim::{ContactModel, SimConfig, SimError, simulate};
+use treemanip_core::sim::{ContactModel, Push, SimConfig, SimError, simulate};
 use treemanip_core::tree::{ScaParams, generate};
 
 fn not_converged_rate(contact: ContactModel) -> (usize, usize) {
@@ -108,5 +109,67 @@ fn warm_started_steps_reach_the_same_steady_states() {
     assert!(
         warm_iterations < cold_iterations,
         "warm {warm_iterations} vs cold {cold_iterations} Newton iterations"
+    );
+}
+
+/// A solve stops at its deadline with `OutOfTime` (between Newton steps),
+/// where without one the same push is solved as before: a deadline
+/// already past stops it before the first step; on a 300-joint chain
+/// (seconds of dense linear algebra) one 50 ms away stops it part way.
+#[test]
+fn a_solve_stops_at_its_deadline() {
+    use std::time::{Duration, Instant};
+    use treemanip_core::sim::solver::SolverOptions;
+    use treemanip_core::tree::{Branch, Tree};
+    let chain = |n: usize| {
+        Tree::new(
+            (0..n)
+                .map(|k| Point3::new(0.0, 0.0, k as f64 * 0.05))
+                .collect(),
+            (0..n).map(|k| k.checked_sub(1)).collect(),
+            (0..n)
+                .map(|k| {
+                    (k > 0).then_some(Branch {
+                        radius: 0.02,
+                        length: 0.05,
+                        stiffness: 10.0,
+                        damping: 1.0,
+                    })
+                })
+                .collect(),
+        )
+        .unwrap()
+    };
+    let with_deadline = |deadline| SimConfig {
+        solver: SolverOptions {
+            deadline: Some(deadline),
+            ..SolverOptions::default()
+        },
+        ..SimConfig::default()
+    };
+    let short = chain(6);
+    let push = Push {
+        node: 5,
+        vector: Vector3::new(0.05, 0.0, 0.0),
+    };
+    let free = simulate(&short, &push, &SimConfig::default()).unwrap();
+    let later = Instant::now() + Duration::from_secs(600);
+    let timed = simulate(&short, &push, &with_deadline(later)).unwrap();
+    assert_eq!(free.final_positions, timed.final_positions);
+    let past = Instant::now() - Duration::from_millis(1);
+    assert!(matches!(
+        simulate(&short, &push, &with_deadline(past)),
+        Err(SimError::OutOfTime { iterations: 0 })
+    ));
+    let deep = chain(300);
+    let push = Push {
+        node: 299,
+        vector: Vector3::new(0.9, 0.0, 0.0),
+    };
+    let soon = Instant::now() + Duration::from_millis(50);
+    let stopped = simulate(&deep, &push, &with_deadline(soon));
+    assert!(
+        matches!(stopped, Err(SimError::OutOfTime { .. })),
+        "{stopped:?}"
     );
 }

@@ -43,7 +43,7 @@ pub async fn simulate(
         node: request.contact_node,
         vector: nalgebra::Vector3::new(x, y, z),
     };
-    let config = SimConfig {
+    let mut config = SimConfig {
         contact: request.contact.into(),
         ..SimConfig::default()
     };
@@ -62,11 +62,18 @@ pub async fn simulate(
     let budget = state.limits.request_timeout.as_secs_f64();
     let response = state
         .run_model_work("/v1/simulate", None, move |control| {
+            // The solver itself stops at the deadline: a deep path's solve
+            // takes seconds (a 512-joint chain's, 9 s).
+            config.solver.deadline = control.deadline;
+            let failed = |e: SimError| match e {
+                SimError::OutOfTime { .. } => ApiError::timeout(budget),
+                e => sim_error(e),
+            };
             let (outcome, guarded) = match guard {
                 Some(stop_at) => {
                     let g = guarded_push(&tree, &push, &config, stop_at, control.deadline)
                         .map_err(|e| match e {
-                            GuardError::Sim(e) => sim_error(e),
+                            GuardError::Sim(e) => failed(e),
                             GuardError::OutOfTime { .. } => ApiError::timeout(budget),
                         })?;
                     let guarded = GuardedJson {
@@ -75,7 +82,7 @@ pub async fn simulate(
                     };
                     (g.outcome, Some(guarded))
                 }
-                None => (run_sim(&tree, &push, &config).map_err(sim_error)?, None),
+                None => (run_sim(&tree, &push, &config).map_err(failed)?, None),
             };
             let loads = branch_loads(&tree, &outcome.joint_rotations);
             let xyz = |p: &nalgebra::Point3<f64>| [p.x, p.y, p.z];
