@@ -7,6 +7,31 @@ use crate::scan::score::score;
 use crate::scan::skeleton::point_segment;
 use crate::tree::{ScaParams, generate};
 
+/// A branch of the hand-made trees below.
+fn branch(radius: f64, length: f64) -> Option<crate::tree::Branch> {
+    Some(crate::tree::Branch {
+        radius,
+        length,
+        stiffness: 10.0,
+        damping: 1.0,
+    })
+}
+
+/// `tree` scanned from three sides, 1 mm noise, bare.
+fn three_views(tree: &crate::tree::Tree, seed: u64) -> crate::scan::Scan {
+    scan(
+        tree,
+        &ScanParams {
+            viewpoints: 3,
+            noise: 0.001,
+            samples_per_view: 30_000,
+            seed,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap()
+}
+
 #[test]
 fn colours_drop_the_leaves_and_the_tree_comes_back() {
     let tree = generate(18, 12, &ScaParams::default()).unwrap();
@@ -56,15 +81,6 @@ fn colours_drop_the_leaves_and_the_tree_comes_back() {
 /// dropped as a fragment.
 #[test]
 fn a_fork_seen_apart_from_its_trunk_is_bridged() {
-    use crate::tree::Branch;
-    let branch = |radius: f64, length: f64| {
-        Some(Branch {
-            radius,
-            length,
-            stiffness: 10.0,
-            damping: 1.0,
-        })
-    };
     let arm = (0.2f64 * 0.2 + 0.2 * 0.2).sqrt();
     let tree = crate::tree::Tree::new(
         vec![
@@ -82,17 +98,7 @@ fn a_fork_seen_apart_from_its_trunk_is_bridged() {
         ],
     )
     .unwrap();
-    let scanned = scan(
-        &tree,
-        &ScanParams {
-            viewpoints: 3,
-            noise: 0.001,
-            samples_per_view: 30_000,
-            seed: 3,
-            ..ScanParams::default()
-        },
-    )
-    .unwrap();
+    let scanned = three_views(&tree, 3);
     let hidden = |p: &Point3<f64>| (0.46..0.50).contains(&p.z);
     let points: Vec<_> = scanned
         .cloud
@@ -123,15 +129,6 @@ fn a_fork_seen_apart_from_its_trunk_is_bridged() {
 /// so. Leaves beside the gap, not over it, bridge nothing.
 #[test]
 fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
-    use crate::tree::Branch;
-    let branch = |radius: f64, length: f64| {
-        Some(Branch {
-            radius,
-            length,
-            stiffness: 10.0,
-            damping: 1.0,
-        })
-    };
     let (fork, tip) = (Point3::new(0.0, 0.0, 0.4), Point3::new(0.25, 0.0, 0.43));
     let tree = crate::tree::Tree::new(
         vec![Point3::origin(), Point3::new(0.0, 0.0, 0.6), fork, tip],
@@ -144,17 +141,7 @@ fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
         ],
     )
     .unwrap();
-    let scanned = scan(
-        &tree,
-        &ScanParams {
-            viewpoints: 3,
-            noise: 0.001,
-            samples_per_view: 30_000,
-            seed: 5,
-            ..ScanParams::default()
-        },
-    )
-    .unwrap();
+    let scanned = three_views(&tree, 5);
     // Along the twig, 0 at the fork and 1 at the tip.
     let along = |p: &Point3<f64>| (p - fork).dot(&(tip - fork)) / (tip - fork).norm_squared();
     let stub = fork + (tip - fork) * 0.965;
