@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::predict::max_node_error;
 use crate::geometry::shape::{PreparedShape, Shape};
-use crate::sim::guarded::{GUARD_STEP, MAX_GUARD_STEPS};
+use crate::sim::guarded::{guard_readings, partway};
 use crate::sim::loads::PushLoads;
 use crate::sim::{Push, SimConfig, simulate_from};
 use crate::tree::Tree;
@@ -258,7 +258,7 @@ impl Limits {
     /// factor brings the force to F, the point s of the push would load
     /// the wood to F × σ(s) / F(s). The guard is the least F at which
     /// some point of the push reaches the stress limit that way (read
-    /// every [`GUARD_STEP`]; the ratio changes along a push as the peak
+    /// where a guarded move reads it, [`guard_readings`]; the ratio changes along a push as the peak
     /// moves from joint to joint, and reading it at the push's end only
     /// let the stress reach 1.25 times the limit), at most the force
     /// limit and never below the largest force the push takes on `tree`
@@ -267,15 +267,12 @@ impl Limits {
     /// takes 3 times the force and passes the stress limit) stops before
     /// its wood does. `None` when the simulator rejects the push.
     pub fn guard_force(&self, tree: &Tree, push: &Push) -> Option<f64> {
-        let steps = ((push.vector.norm() / GUARD_STEP).ceil() as usize).clamp(1, MAX_GUARD_STEPS);
+        let steps = guard_readings(push);
         let config = SimConfig::default();
         let (mut by_stress, mut largest) = (f64::INFINITY, 0.0_f64);
         let mut warm: Option<Vec<nalgebra::Vector3<f64>>> = None;
         for k in 1..=steps {
-            let part = Push {
-                node: push.node,
-                vector: push.vector * (k as f64 / steps as f64),
-            };
+            let part = partway(push, k as f64 / steps as f64);
             let out = simulate_from(tree, &part, &config, warm.as_deref()).ok()?;
             let loads = PushLoads::of_outcome(tree, &out);
             if loads.peak_stress > 0.0 {

@@ -37,6 +37,22 @@ pub const MAX_GUARD_STEPS: usize = 40;
 /// read at 500 Hz during a 2 cm/s push sees every 0.04 mm.
 pub const GUARD_TOLERANCE: f64 = 1e-4;
 
+/// How many readings a guarded move takes along `push` before any
+/// bisection: one every [`GUARD_STEP`], at most [`MAX_GUARD_STEPS`]. The
+/// planner's guard ([`crate::planner::objective::Limits::guard_force`])
+/// reads a push at the same points.
+pub fn guard_readings(push: &Push) -> usize {
+    ((push.vector.norm() / GUARD_STEP).ceil() as usize).clamp(1, MAX_GUARD_STEPS)
+}
+
+/// `push` carried a `fraction` (0-1) of its length.
+pub fn partway(push: &Push, fraction: f64) -> Push {
+    Push {
+        node: push.node,
+        vector: push.vector * fraction,
+    }
+}
+
 /// Why a guarded push has no answer.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum GuardError {
@@ -73,7 +89,7 @@ pub fn guarded_push(
 ) -> Result<GuardedPush, GuardError> {
     let length = push.vector.norm();
     let force = |o: &PushOutcome| Vector3::from(o.report.contact_force).norm();
-    let steps = ((length / GUARD_STEP).ceil() as usize).clamp(1, MAX_GUARD_STEPS);
+    let steps = guard_readings(push);
     let mut readings = 0;
     let mut in_time = || {
         readings += 1;
@@ -84,10 +100,7 @@ pub fn guarded_push(
             _ => Ok(()),
         }
     };
-    let part = |s: f64| Push {
-        node: push.node,
-        vector: push.vector * s,
-    };
+    let part = |s: f64| partway(push, s);
     let mut below: Option<(f64, PushOutcome)> = None;
     let mut k = 0;
     loop {
