@@ -8,7 +8,8 @@
 //!
 //! - a part shaped like a stretch of branch or larger than any leaf, at
 //!   most the extraction's `max_gap` away; or
-//! - any part of [`MIN_PART_VOXELS`] cubes or more, at most
+//! - a thin part ([`COVERED_MAX_WIDTH`]: not a fruit or a leaf) of
+//!   [`MIN_PART_VOXELS`] cubes or more that looks like bark, at most
 //!   [`COVERED_MAX_GAP`] away, where the gap runs under leaves all the way
 //!   ([`LeafCover`]): the leaves dropped from the cloud are what hid it.
 //!   A twig among its leaves, seen from one side, shows only the few
@@ -40,6 +41,12 @@ pub const COVERED_MAX_GAP: f64 = 0.25;
 /// this (m): a leaf's radius (2.5 cm) and the distance it stands off the
 /// twig, less the gap a leaf leaves between it and its neighbours.
 pub const LEAF_COVER: f64 = 0.04;
+/// A part bridged under leaf cover must be thin: its spread across its
+/// longest axis (standard deviation, m) at most this. A twig's bark has
+/// about its radius over √2 (3.5 mm at 5 mm), a 3.5 cm fruit's cap or a
+/// leaf's disc 1.2 cm and more.
+pub const COVERED_MAX_WIDTH: f64 = 0.008;
+
 /// Points of a gap tested for cover, this far apart (m).
 const COVER_STEP: f64 = 0.01;
 
@@ -126,13 +133,20 @@ pub fn bridges(
     // larger than any leaf or fruit (a fork or a whole subtree seen apart
     // from the tree behind leaves is not elongated): a leaf or a fruit seen
     // apart from its twig is neither.
-    let branch_like = |l: usize| {
+    let spread = |l: usize| {
         let pts: Vec<Point3<f64>> = of_part[l].iter().map(|&i| points[i]).collect();
-        let spread = principal(&pts).spread;
-        spread[0] >= ELONGATION * spread[1] || spread[0] >= SUBTREE_SPREAD
+        principal(&pts).spread
     };
     let sized: Vec<usize> = (0..parts).filter(|&l| !of_part[l].is_empty()).collect();
-    let big: Vec<bool> = sized.iter().map(|&l| l == main || branch_like(l)).collect();
+    let spreads: Vec<_> = sized.iter().map(|&l| spread(l)).collect();
+    let big: Vec<bool> = sized
+        .iter()
+        .zip(&spreads)
+        .map(|(&l, s)| l == main || s[0] >= ELONGATION * s[1] || s[0] >= SUBTREE_SPREAD)
+        .collect();
+    // What may be bridged under leaves that is not big: a thin part (a
+    // stretch of twig), not a fruit or a leaf the classifier left.
+    let thin: Vec<bool> = spreads.iter().map(|s| s[1] <= COVERED_MAX_WIDTH).collect();
     let reach = if cover.is_some() {
         max_gap.max(COVERED_MAX_GAP)
     } else {
@@ -198,8 +212,8 @@ pub fn bridges(
                 out.push(bridge(false));
             } else if gap <= COVERED_MAX_GAP
                 && cover.is_some_and(|c| {
-                    (big[x] || c.looks_like_bark(&of_part[sized[x]]))
-                        && (big[y] || c.looks_like_bark(&of_part[sized[y]]))
+                    (big[x] || thin[x] && c.looks_like_bark(&of_part[sized[x]]))
+                        && (big[y] || thin[y] && c.looks_like_bark(&of_part[sized[y]]))
                         && c.covers(&points[from], &points[to])
                 })
             {
@@ -224,7 +238,8 @@ mod tests {
 
     /// A short stub of bark 20 cm from the tree is bridged only where
     /// leaves cover the gap between them; a long stretch 4 cm away is
-    /// bridged across bare air too; a stub beyond [`COVERED_MAX_GAP`] never.
+    /// bridged across bare air too; a fruit under leaves is not thin, and
+    /// is never bridged.
     #[test]
     fn a_stub_hidden_by_leaves_is_bridged_and_one_in_the_open_is_not() {
         // The tree: a 40 cm stem up z. Part 1: a compact block of 8 cubes
@@ -261,7 +276,21 @@ mod tests {
             ));
             labels.push(3);
         }
-        let part_voxels = vec![100, 8, 30, 8];
+        // Part 4: a 3.5 cm fruit's near half (a cap of points 4 mm apart)
+        // 20 cm from the stem on the other side, under leaves too.
+        let mut fruit = 0;
+        for i in -8i32..=8 {
+            for j in -8i32..=8 {
+                let (u, v) = (0.004 * i as f64, 0.004 * j as f64);
+                if u * u + v * v < 0.035 * 0.035 {
+                    let w = (0.035f64 * 0.035 - u * u - v * v).sqrt();
+                    points.push(Point3::new(-0.235 + w, u, 0.2 + v));
+                    labels.push(4);
+                    fruit += 1;
+                }
+            }
+        }
+        let part_voxels = vec![100, 8, 30, 8, fruit];
         let joined =
             |b: &[Bridge], l: usize| b.iter().any(|b| labels[b.from] == l || labels[b.to] == l);
 
@@ -276,6 +305,7 @@ mod tests {
             .map(|k| Point3::new(0.01 * k as f64, 0.02, 0.2))
             .collect();
         leaves.push(Point3::new(0.0, 0.32, 0.32));
+        leaves.extend((0..=20).map(|k| Point3::new(-0.01 * k as f64, 0.02, 0.2)));
         let cover = LeafCover::new(&leaves, None).unwrap();
         assert!(cover.covers(&Point3::new(0.0, 0.0, 0.2), &Point3::new(0.2, 0.0, 0.2)));
         assert!(!cover.covers(&Point3::new(0.0, 0.0, 0.2), &Point3::new(0.0, 0.3, 0.3)));
@@ -288,5 +318,6 @@ mod tests {
         );
         assert!(joined(&covered, 2));
         assert!(!joined(&covered, 3), "the gap to part 3 is open air");
+        assert!(!joined(&covered, 4), "a fruit is not thin");
     }
 }
