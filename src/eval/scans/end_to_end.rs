@@ -211,7 +211,7 @@ fn guarded(
     limits: &Limits,
     stop_at: f64,
 ) -> Option<(bool, bool, bool)> {
-    let g = guarded_push(tree, push, &SimConfig::default(), stop_at, None).ok()?;
+    let g = guarded_push(tree, push, &SimConfig::default(), stop_at).ok()?;
     let residual = objective
         .scorer()
         .residual(tree, &g.outcome.final_positions);

@@ -19,7 +19,6 @@
 use super::{Push, PushOutcome, SimConfig, SimError, simulate, simulate_from};
 use crate::tree::Tree;
 use nalgebra::Vector3;
-use std::time::Instant;
 
 /// Steps (m) at which the force is read along the push before the
 /// crossing is bisected: short enough that a push cannot pass over a
@@ -53,17 +52,6 @@ pub fn partway(push: &Push, fraction: f64) -> Push {
     }
 }
 
-/// Why a guarded push has no answer.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum GuardError {
-    /// The simulator rejected a step before the guard tripped.
-    #[error(transparent)]
-    Sim(#[from] SimError),
-    /// The deadline passed between two readings.
-    #[error("the guarded push ran out of time after {readings} simulations")]
-    OutOfTime { readings: usize },
-}
-
 /// What a guarded push did.
 #[derive(Debug, Clone)]
 pub struct GuardedPush {
@@ -78,28 +66,18 @@ pub struct GuardedPush {
 /// `push` carried out on `tree` as a move that stops where the contact
 /// force first reaches `stop_at` (N). The returned state's force is at
 /// most `stop_at`. Errors are the simulator's, at the first step it
-/// rejects before the guard trips, or the `deadline` passing (checked
-/// before each simulation: a deep path's simulation can take seconds).
+/// rejects before the guard trips; with `config.solver.deadline`, that
+/// is [`SimError::OutOfTime`] once it passes (a deep path's simulation can
+/// take seconds, and a guarded push is dozens of them).
 pub fn guarded_push(
     tree: &Tree,
     push: &Push,
     config: &SimConfig,
     stop_at: f64,
-    deadline: Option<Instant>,
-) -> Result<GuardedPush, GuardError> {
+) -> Result<GuardedPush, SimError> {
     let length = push.vector.norm();
     let force = |o: &PushOutcome| Vector3::from(o.report.contact_force).norm();
     let steps = guard_readings(push);
-    let mut readings = 0;
-    let mut in_time = || {
-        readings += 1;
-        match deadline {
-            Some(d) if Instant::now() > d => Err(GuardError::OutOfTime {
-                readings: readings - 1,
-            }),
-            _ => Ok(()),
-        }
-    };
     let part = |s: f64| partway(push, s);
     let mut below: Option<(f64, PushOutcome)> = None;
     let mut k = 0;
@@ -107,7 +85,6 @@ pub fn guarded_push(
         k += 1;
         let s = k as f64 / steps as f64;
         let warm = below.as_ref().map(|(_, o)| o.joint_rotations.as_slice());
-        in_time()?;
         let out = simulate_from(tree, &part(s), config, warm)?;
         if force(&out) <= stop_at {
             if k == steps {
@@ -125,7 +102,6 @@ pub fn guarded_push(
         while (hi - lo) * length > GUARD_TOLERANCE {
             let mid = 0.5 * (lo + hi);
             let warm = below.as_ref().map(|(_, o)| o.joint_rotations.as_slice());
-            in_time()?;
             let o = simulate_from(tree, &part(mid), config, warm)?;
             if force(&o) <= stop_at {
                 lo = mid;

@@ -162,7 +162,7 @@ fn a_guarded_push_stops_where_the_closed_form_force_reaches_the_guard() {
     let config = SimConfig::default();
     for stop_t in [0.013, 0.05] {
         let stop_at = force_at(stop_t);
-        let guarded = guarded_push(&tree, &push, &config, stop_at, None).unwrap();
+        let guarded = guarded_push(&tree, &push, &config, stop_at).unwrap();
         assert!(guarded.stopped);
         let t = guarded.fraction * 0.08;
         assert!(
@@ -180,15 +180,21 @@ fn a_guarded_push_stops_where_the_closed_form_force_reaches_the_guard() {
         assert!((guarded.outcome.final_positions[1] - tip).norm() < 1e-9);
     }
     // Past its deadline a guarded push simulates nothing more.
-    let past = std::time::Instant::now() - std::time::Duration::from_millis(1);
+    let past = SimConfig {
+        solver: treemanip_core::sim::solver::SolverOptions {
+            deadline: Some(std::time::Instant::now() - std::time::Duration::from_millis(1)),
+            ..Default::default()
+        },
+        ..SimConfig::default()
+    };
     assert_eq!(
-        guarded_push(&tree, &push, &config, 1.0, Some(past)).unwrap_err(),
-        treemanip_core::sim::guarded::GuardError::OutOfTime { readings: 0 }
+        guarded_push(&tree, &push, &past, 1.0).unwrap_err(),
+        treemanip_core::sim::SimError::OutOfTime { iterations: 0 }
     );
     // A guard above the whole push's force never trips: the push as the
     // simulator gives it.
     let whole = simulate(&tree, &push, &config).unwrap();
-    let guarded = guarded_push(&tree, &push, &config, force_at(0.08) * 1.01, None).unwrap();
+    let guarded = guarded_push(&tree, &push, &config, force_at(0.08) * 1.01).unwrap();
     assert!(!guarded.stopped && guarded.fraction == 1.0);
     assert!((guarded.outcome.final_positions[1] - whole.final_positions[1]).norm() < 1e-9);
 }
@@ -211,7 +217,7 @@ fn a_guarded_push_never_ends_above_its_guard() {
         };
         let full = Vector3::from(out.report.contact_force).norm();
         for stop_at in [0.5 * full, 2.0 * full] {
-            let Ok(g) = guarded_push(&tree, &push, &config, stop_at, None) else {
+            let Ok(g) = guarded_push(&tree, &push, &config, stop_at) else {
                 continue;
             };
             let f = Vector3::from(g.outcome.report.contact_force).norm();

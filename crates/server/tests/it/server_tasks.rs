@@ -108,7 +108,7 @@ fn plan_clears_a_fruit_and_reports_loads() {
         assert!(guard <= at_end.min(50.0) + 1e-9, "{guard} N");
         assert!(guard >= loads.contact_force, "{guard} N");
         let config = SimConfig::default();
-        let as_sent = guarded_push(&tree, &push, &config, guard, None).unwrap();
+        let as_sent = guarded_push(&tree, &push, &config, guard).unwrap();
         assert!(
             !as_sent.stopped,
             "{strategy}: the tree as planned tripped the guard"
@@ -130,7 +130,7 @@ fn plan_clears_a_fruit_and_reports_loads() {
         .unwrap();
         let unguarded =
             PushLoads::of_outcome(&stiffer, &simulate(&stiffer, &push, &config).unwrap());
-        let guarded = guarded_push(&stiffer, &push, &config, guard, None).unwrap();
+        let guarded = guarded_push(&stiffer, &push, &config, guard).unwrap();
         let held = PushLoads::of_outcome(&stiffer, &guarded.outcome);
         assert!(guarded.stopped && guarded.fraction < 1.0);
         assert!(unguarded.contact_force > guard, "{unguarded:?}");
