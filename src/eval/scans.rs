@@ -33,7 +33,11 @@ pub use rows::{
 /// The evaluation's grid: 1 and 3 viewpoints, 1-5 mm noise, without
 /// leaves, with leaves (x, y, z only), with leaves and colour; then one
 /// view without colour again, the extraction told a camera made the
-/// cloud (`sensor: camera`: what our scans are).
+/// cloud (`sensor: camera`: what our scans are). The extraction is told
+/// where the scanner stood, as a robot knows its camera's pose (a camera's
+/// own cloud is in its frame: it stood at the origin); the leafy one-view
+/// conditions at 3 mm come again without (a cloud whose sensor's place is
+/// lost).
 pub fn default_conditions() -> Vec<Condition> {
     let mut out = Vec::new();
     let kinds = [
@@ -58,9 +62,20 @@ pub fn default_conditions() -> Vec<Condition> {
                     leaves,
                     colour,
                     sensor,
+                    placed: true,
                 });
             }
         }
+    }
+    for colour in [false, true] {
+        out.push(Condition {
+            views: 1,
+            noise: 0.003,
+            leaves: LEAVES_PER_TWIG,
+            colour,
+            sensor: Sensor::Unknown,
+            placed: false,
+        });
     }
     out
 }
@@ -110,15 +125,24 @@ pub fn evaluate_condition(
     let mut rows = Vec::new();
     let mut extractions = Vec::new();
     for (i, tree) in trees.iter().enumerate() {
-        let mut cloud = match scan(tree, &scan_params(condition, seed, i)) {
-            Ok(s) => s.cloud,
+        let (mut cloud, viewpoints) = match scan(tree, &scan_params(condition, seed, i)) {
+            Ok(s) => (s.cloud, s.viewpoints),
             Err(e) => panic!("the evaluation's scan parameters are valid: {e}"),
         };
         if !condition.colour {
             cloud.colors = None;
         }
-        let (row, extraction) =
-            TreeRow::extracted(&Skeleton::of_tree(tree), &cloud, condition.sensor);
+        let viewpoints = if condition.placed {
+            viewpoints
+        } else {
+            Vec::new()
+        };
+        let (row, extraction) = TreeRow::extracted(
+            &Skeleton::of_tree(tree),
+            &cloud,
+            condition.sensor,
+            &viewpoints,
+        );
         rows.push(row);
         extractions.push(extraction);
     }

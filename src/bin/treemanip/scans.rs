@@ -70,6 +70,15 @@ pub fn scan_cmd(args: ScanArgs) -> anyhow::Result<()> {
         scan.viewpoints.len(),
         args.out.display()
     );
+    // What `trees from-points` is told of where the scanner stood.
+    println!(
+        "viewpoints: {}",
+        scan.viewpoints
+            .iter()
+            .map(|v| format!("--viewpoint {:.4},{:.4},{:.4}", v.x, v.y, v.z))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
     if let Some(svg) = args.svg {
         let truth = Skeleton::of_tree(&tree);
         let title = format!("{}: {} points", args.tree.display(), scan.cloud.len());
@@ -114,6 +123,11 @@ pub struct FromPointsArgs {
     /// twigs).
     #[arg(long, default_value = "unknown")]
     sensor: String,
+    /// Where the sensor stood, `x,y,z` (m), once per view (`0,0,0` for a
+    /// camera's own cloud, in its frame): gaps hidden behind what it saw
+    /// are then bridged as gaps under leaves are.
+    #[arg(long = "viewpoint")]
+    viewpoints: Vec<String>,
 }
 
 pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
@@ -136,6 +150,7 @@ pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
                 |_| anyhow::anyhow!("--sensor must be unknown or camera, not {}", args.sensor),
             )?,
         ),
+        viewpoints: (!args.viewpoints.is_empty()).then(|| args.viewpoints.join(",")),
     };
     let params = ExtractParams {
         max_points: args.max_points,

@@ -69,10 +69,11 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
             || (condition.views == 1
                 && condition.noise == 0.003
                 && condition.leaves == LEAVES_PER_TWIG);
-        // End to end also with colour, and told a camera made the cloud,
-        // for the leafy headline; clouds written and peers read for the
-        // plain headlines only.
-        let variant = headline && (condition.colour || condition.sensor == Sensor::Camera);
+        // End to end also with colour, told a camera made the cloud, and
+        // not told where the scanner stood, for the leafy headline; clouds
+        // written and peers read for the plain headlines only.
+        let variant = headline
+            && (condition.colour || condition.sensor == Sensor::Camera || !condition.placed);
         let headline = headline && !variant;
         if args.headline_only && !headline && !variant {
             continue;

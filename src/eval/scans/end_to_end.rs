@@ -337,6 +337,7 @@ mod tests {
             leaves: 0,
             colour: false,
             sensor: Sensor::Unknown,
+            placed: true,
         };
         let (_, extractions) = evaluate_condition(&trees, &condition, 7);
         let limits = Limits {

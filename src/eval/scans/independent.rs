@@ -96,11 +96,12 @@ pub fn independent_rows(dir: &Path, peers: &[Peer]) -> anyhow::Result<Vec<Condit
                 leaves: 0,
                 colour: false,
                 sensor,
+                placed: false,
             };
             let ours: Vec<TreeRow> = these
                 .iter()
                 .map(|case| {
-                    let (row, _) = TreeRow::extracted(&case.truth, &case.cloud, sensor);
+                    let (row, _) = TreeRow::extracted(&case.truth, &case.cloud, sensor, &[]);
                     eprintln!(
                         "  {}: {} points, recall {:.3}, precision {:.3} (1.0 r), radius {:.2} mm{}",
                         case.stem,
@@ -126,6 +127,7 @@ pub fn independent_rows(dir: &Path, peers: &[Peer]) -> anyhow::Result<Vec<Condit
             leaves: 0,
             colour: false,
             sensor: Sensor::Unknown,
+            placed: false,
         };
         for &peer in peers {
             let cases = these.iter().map(|c| (c.stem.as_str(), &c.truth));

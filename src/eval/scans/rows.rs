@@ -2,6 +2,7 @@
 //! scores under it, a condition's averages and the markdown table, shared
 //! by our own extraction, the peers and the independent scans.
 
+use nalgebra::Point3;
 use serde::Serialize;
 
 use crate::eval::plan::percentile;
@@ -22,12 +23,15 @@ pub struct Condition {
     pub colour: bool,
     /// What the extraction is told made the cloud.
     pub sensor: Sensor,
+    /// Whether the extraction is told where the scanner stood (its
+    /// `viewpoints`), as a robot knows its camera's pose.
+    pub placed: bool,
 }
 
 impl Condition {
     pub fn label(&self) -> String {
         format!(
-            "{} view{}, {:.0} mm{}{}{}",
+            "{} view{}, {:.0} mm{}{}{}{}",
             self.views,
             if self.views == 1 { "" } else { "s" },
             self.noise * 1e3,
@@ -41,6 +45,11 @@ impl Condition {
                 ", `sensor: camera`"
             } else {
                 ""
+            },
+            if self.placed {
+                ""
+            } else {
+                ", viewpoint unknown"
             }
         )
     }
@@ -72,10 +81,12 @@ impl TreeRow {
         truth: &Skeleton,
         cloud: &PointCloud,
         sensor: Sensor,
+        viewpoints: &[Point3<f64>],
     ) -> (Self, Option<Extraction>) {
         let start = std::time::Instant::now();
         let params = ExtractParams {
             sensor,
+            viewpoints: viewpoints.to_vec(),
             ..ExtractParams::default()
         };
         let result = extract(cloud, &params);

@@ -10,16 +10,19 @@
 //!   most the extraction's `max_gap` away; or
 //! - a thin part ([`COVERED_MAX_WIDTH`]: not a fruit or a leaf) of
 //!   [`MIN_PART_VOXELS`] cubes or more that looks like bark, at most
-//!   [`COVERED_MAX_GAP`] away, where the gap runs under leaves all the way
-//!   ([`LeafCover`]): the leaves dropped from the cloud are what hid it.
-//!   A twig among its leaves, seen from one side, shows only the few
-//!   centimetres of bark between them, too short to look like a branch and
-//!   too far from the tree for a bare gap.
+//!   [`COVERED_MAX_GAP`] away, where the gap is covered all the way
+//!   ([`Cover`]): it runs under the leaves dropped from the cloud, or, where
+//!   the sensor's place is known, behind what it saw ([`Shadows`]). A twig
+//!   among its leaves, seen from one side, shows only the few centimetres
+//!   of bark between them, too short to look like a branch and too far
+//!   from the tree for a bare gap; a gap the sensor looked through is
+//!   empty air.
 
 use nalgebra::{Point3, Vector3};
 
 use crate::geometry::principal::principal;
 use crate::scan::neighbours::PointIndex;
+use crate::scan::shadow::Shadows;
 
 /// A part needs this many cubes to be bridged to the tree.
 pub const MIN_PART_VOXELS: usize = 8;
@@ -56,27 +59,36 @@ const COVER_STEP: f64 = 0.01;
 /// that, a twig's bark well below).
 pub const COVERED_MAX_LEAF_CHANCE: f64 = 0.3;
 
-/// The points dropped as leaves: what tells a gap that leaves hid from one
-/// through empty air.
-pub struct LeafCover {
-    index: PointIndex,
+/// What tells a gap that something hid from one through empty air: the
+/// points dropped as leaves, and where the sensor's place is known, the
+/// shadows of everything it saw ([`Shadows`]).
+pub struct Cover {
+    leaves: Option<PointIndex>,
+    shadows: Option<Shadows>,
     /// Each cube's chance of being leaf, where leaves went by shape (by
     /// colour, what is left is bark).
     leaf_chance: Option<Vec<f64>>,
 }
 
-impl LeafCover {
-    /// `None` where no leaves were dropped. `leaf_chance`: each cube's
-    /// chance of being leaf (by shape), if that is how they were told.
-    pub fn new(leaves: &[Point3<f64>], leaf_chance: Option<Vec<f64>>) -> Option<Self> {
-        (!leaves.is_empty()).then(|| Self {
-            index: PointIndex::new(leaves),
+impl Cover {
+    /// `None` where no leaves were dropped and no shadows are known.
+    /// `leaf_chance`: each cube's chance of being leaf (by shape), if that
+    /// is how they were told.
+    pub fn new(
+        leaves: &[Point3<f64>],
+        shadows: Option<Shadows>,
+        leaf_chance: Option<Vec<f64>>,
+    ) -> Option<Self> {
+        let leaves = (!leaves.is_empty()).then(|| PointIndex::new(leaves));
+        (leaves.is_some() || shadows.is_some()).then_some(Self {
+            leaves,
+            shadows,
             leaf_chance,
         })
     }
 
     /// Whether the cubes `part` look like bark (always, where leaves went
-    /// by colour).
+    /// by colour or none were dropped).
     fn looks_like_bark(&self, part: &[usize]) -> bool {
         self.leaf_chance.as_ref().is_none_or(|c| {
             part.iter().map(|&i| c[i]).sum::<f64>() / part.len().max(1) as f64
@@ -84,17 +96,38 @@ impl LeafCover {
         })
     }
 
-    /// Whether leaves cover the segment from `a` to `b`: a leaf point within
-    /// [`LEAF_COVER`] of each of its points `COVER_STEP` (1 cm) apart, ends
-    /// included.
-    pub fn covers(&self, a: &Point3<f64>, b: &Point3<f64>) -> bool {
+    /// What covers the segment from `a` to `b`, if each of its points
+    /// `COVER_STEP` (1 cm) apart, ends included, has a leaf point within
+    /// [`LEAF_COVER`] or lies in the sensor's shadow.
+    pub fn covers(&self, a: &Point3<f64>, b: &Point3<f64>) -> Option<Covered> {
         let d = b - a;
         let steps = (d.norm() / COVER_STEP).ceil().max(1.0) as usize;
-        (0..=steps).all(|s| {
+        let mut by = Covered::Leaves;
+        for s in 0..=steps {
             let p = a + d * (s as f64 / steps as f64);
-            self.index.nearest(&p).1 <= LEAF_COVER
-        })
+            if self
+                .leaves
+                .as_ref()
+                .is_some_and(|l| l.nearest(&p).1 <= LEAF_COVER)
+            {
+                continue;
+            }
+            if !self.shadows.as_ref().is_some_and(|h| h.hidden(&p)) {
+                return None;
+            }
+            by = Covered::Shadow;
+        }
+        Some(by)
     }
+}
+
+/// What covers a gap.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Covered {
+    /// Leaves all the way.
+    Leaves,
+    /// Somewhere only what the sensor saw in front of it.
+    Shadow,
 }
 
 /// A gap that may be bridged: the closest pair of points of two parts.
@@ -105,8 +138,9 @@ pub struct Bridge {
     /// The point of one part and of the other.
     pub from: usize,
     pub to: usize,
-    /// Bridged because leaves cover it (the bare rule would not have).
-    pub under_leaves: bool,
+    /// Bridged because leaves or the sensor's shadows cover it (the bare
+    /// rule would not have); `None` when bridged bare.
+    pub covered: Option<Covered>,
 }
 
 /// The closest pair of points of every two parts (of at least
@@ -119,7 +153,7 @@ pub fn bridges(
     part_voxels: &[usize],
     main: usize,
     max_gap: f64,
-    cover: Option<&LeafCover>,
+    cover: Option<&Cover>,
 ) -> Vec<Bridge> {
     let parts = part_voxels.len();
     let mut of_part: Vec<Vec<usize>> = vec![Vec::new(); parts];
@@ -202,22 +236,23 @@ pub fn bridges(
             let Some((gap, from, to)) = best else {
                 continue;
             };
-            let bridge = |under_leaves| Bridge {
+            let bridge = |covered| Bridge {
                 gap,
                 from,
                 to,
-                under_leaves,
+                covered,
             };
             if bare && gap <= max_gap {
-                out.push(bridge(false));
+                out.push(bridge(None));
             } else if gap <= COVERED_MAX_GAP
-                && cover.is_some_and(|c| {
-                    (big[x] || thin[x] && c.looks_like_bark(&of_part[sized[x]]))
-                        && (big[y] || thin[y] && c.looks_like_bark(&of_part[sized[y]]))
-                        && c.covers(&points[from], &points[to])
+                && let Some(by) = cover.and_then(|c| {
+                    ((big[x] || thin[x] && c.looks_like_bark(&of_part[sized[x]]))
+                        && (big[y] || thin[y] && c.looks_like_bark(&of_part[sized[y]])))
+                    .then(|| c.covers(&points[from], &points[to]))
+                    .flatten()
                 })
             {
-                out.push(bridge(true));
+                out.push(bridge(Some(by)));
             }
         }
     }
@@ -306,15 +341,22 @@ mod tests {
             .collect();
         leaves.push(Point3::new(0.0, 0.32, 0.32));
         leaves.extend((0..=20).map(|k| Point3::new(-0.01 * k as f64, 0.02, 0.2)));
-        let cover = LeafCover::new(&leaves, None).unwrap();
-        assert!(cover.covers(&Point3::new(0.0, 0.0, 0.2), &Point3::new(0.2, 0.0, 0.2)));
-        assert!(!cover.covers(&Point3::new(0.0, 0.0, 0.2), &Point3::new(0.0, 0.3, 0.3)));
+        let cover = Cover::new(&leaves, None, None).unwrap();
+        assert_eq!(
+            cover.covers(&Point3::new(0.0, 0.0, 0.2), &Point3::new(0.2, 0.0, 0.2)),
+            Some(Covered::Leaves)
+        );
+        assert!(
+            cover
+                .covers(&Point3::new(0.0, 0.0, 0.2), &Point3::new(0.0, 0.3, 0.3))
+                .is_none()
+        );
         let covered = bridges(&points, &labels, &part_voxels, 0, 0.06, Some(&cover));
         assert!(joined(&covered, 1), "the stub under leaves");
         assert!(
             covered
                 .iter()
-                .any(|b| b.under_leaves && labels[b.to] + labels[b.from] == 1)
+                .any(|b| b.covered.is_some() && labels[b.to] + labels[b.from] == 1)
         );
         assert!(joined(&covered, 2));
         assert!(!joined(&covered, 3), "the gap to part 3 is open air");

@@ -29,6 +29,7 @@ pub mod levels;
 pub mod neighbours;
 pub mod scanner;
 pub mod score;
+pub mod shadow;
 pub mod simplify;
 pub mod skeleton;
 pub mod viewpoint;

@@ -16,6 +16,7 @@ use crate::api::types::{
     CropJson, DroppedJson, FoliageJson, FromPointsQuery, FromPointsRequest, FromPointsResponse,
     SensorJson, TreeJson,
 };
+use treemanip_core::scan::extract::MAX_VIEWPOINTS;
 use treemanip_core::scan::io::FormatError;
 use treemanip_core::scan::{CloudError, CropBox, ExtractParams, Extraction, PointCloud, extract};
 
@@ -143,6 +144,7 @@ impl FromPointsRequest {
             self.crop,
             self.foliage,
             self.sensor,
+            self.viewpoints.as_deref(),
         )?;
         Ok((
             PointCloud {
@@ -163,6 +165,7 @@ fn params(
     crop: Option<CropJson>,
     foliage: Option<FoliageJson>,
     sensor: Option<SensorJson>,
+    viewpoints: Option<&[Vec<f64>]>,
 ) -> Result<ExtractParams, ApiError> {
     let defaults = ExtractParams::default();
     Ok(ExtractParams {
@@ -180,6 +183,11 @@ fn params(
         }),
         foliage: foliage.unwrap_or_default().into(),
         sensor: sensor.unwrap_or_default().into(),
+        viewpoints: viewpoints
+            .unwrap_or_default()
+            .iter()
+            .map(|v| vector3(v, "viewpoints").map(Point3::from))
+            .collect::<Result<_, _>>()?,
         ..defaults
     })
 }
@@ -228,6 +236,23 @@ impl FromPointsQuery {
                 })
             })
             .transpose()?;
+        let viewpoints = self
+            .viewpoints
+            .as_deref()
+            .map(|s| {
+                let n = s.split(',').count();
+                if n % 3 != 0 || n > 3 * MAX_VIEWPOINTS {
+                    return Err(ApiError::invalid_argument(format!(
+                        "`viewpoints` must be x,y,z for each of at most {MAX_VIEWPOINTS} views, comma-separated"
+                    ))
+                    .with_details(json!({ "field": "viewpoints" })));
+                }
+                Ok(numbers("viewpoints", s, n)?
+                    .chunks(3)
+                    .map(<[f64]>::to_vec)
+                    .collect::<Vec<_>>())
+            })
+            .transpose()?;
         params(
             root.as_deref(),
             up.as_deref(),
@@ -235,6 +260,7 @@ impl FromPointsQuery {
             crop,
             self.foliage,
             self.sensor,
+            viewpoints.as_deref(),
         )
     }
 }

@@ -367,3 +367,96 @@ fn a_camera_cloud_seen_from_one_side_has_its_axes_moved_back() {
         "{bad}"
     );
 }
+
+/// A leafy cloud from one camera: told where the camera stood (`viewpoints`
+/// in JSON, or in the query with a PLY body), the extraction bridges gaps
+/// hidden behind what it saw, says so, and the tree comes back with more
+/// of the true branches; bad viewpoints are named.
+#[test]
+fn a_cloud_told_where_its_camera_stood_bridges_what_was_hidden() {
+    let server = Server::start(&[]);
+    let tree = generate(20, 2, &ScaParams::default()).unwrap();
+    let scanned = scan(
+        &tree,
+        &ScanParams {
+            viewpoints: 1,
+            noise: 0.003,
+            leaves_per_twig: 8,
+            seed: 2,
+            ..ScanParams::default()
+        },
+    )
+    .unwrap();
+    let eye = scanned.viewpoints[0];
+    let cloud = scanned.cloud;
+    let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let colors: Vec<[u8; 3]> = cloud.colors.clone().unwrap();
+    let hidden = |answer: &Value| {
+        answer["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("behind what the sensor saw"))
+    };
+    let (status, blind) = server.json(
+        "POST",
+        "/v1/trees/from-points",
+        &json!({ "points": points, "colors": colors }),
+    );
+    assert_eq!(status, 200, "{blind}");
+    assert!(!hidden(&blind), "{}", blind["warnings"]);
+    let (status, told) = server.json(
+        "POST",
+        "/v1/trees/from-points",
+        &json!({ "points": points, "colors": colors, "viewpoints": [[eye.x, eye.y, eye.z]] }),
+    );
+    assert_eq!(status, 200, "{told}");
+    assert!(hidden(&told), "{}", told["warnings"]);
+    let truth = Skeleton::of_tree(&tree);
+    let (a, b) = (
+        score(&truth, &skeleton_of(&told)),
+        score(&truth, &skeleton_of(&blind)),
+    );
+    assert!(a.recall[1] > b.recall[1], "{a:?} {b:?}");
+    let (status, query) = server.send(
+        "POST",
+        &format!(
+            "/v1/trees/from-points?viewpoints={},{},{}",
+            eye.x, eye.y, eye.z
+        ),
+        "application/x-ply",
+        &ply_bytes(&cloud),
+    );
+    assert_eq!(status, 200, "{query}");
+    assert_eq!(query["tree"], told["tree"]);
+    for (body, field) in [
+        (
+            json!({ "points": points, "viewpoints": [[0.0, 1.0]] }),
+            "viewpoints",
+        ),
+        (
+            json!({ "points": points, "viewpoints": vec![[0.0, 0.0, 1.0]; 65] }),
+            "64",
+        ),
+    ] {
+        let (status, bad) = server.json("POST", "/v1/trees/from-points", &body);
+        assert!(status == 400 || status == 422, "{status} {bad}");
+        assert!(
+            bad["error"]["message"].as_str().unwrap().contains(field),
+            "{bad}"
+        );
+    }
+    let (status, bad) = server.send(
+        "POST",
+        "/v1/trees/from-points?viewpoints=0,0",
+        "application/x-ply",
+        &ply_bytes(&cloud),
+    );
+    assert_eq!(status, 422, "{bad}");
+    assert!(
+        bad["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("viewpoints")
+    );
+}

@@ -12,8 +12,9 @@
 //!    large part; bridge gaps to other parts (an occluded stretch of
 //!    branch) only when the part is shaped like a branch or larger than a
 //!    leaf and the gap is at most `max_gap` (at least [`LEAFY_MAX_GAP`]
-//!    once leaves went by shape), or the dropped leaves cover the gap
-//!    ([`crate::scan::bridge`]); what stays apart is a fragment. A second
+//!    once leaves went by shape), or the dropped leaves cover the gap, or
+//!    it lies behind what the sensor saw from the `viewpoints` given
+//!    ([`crate::scan::bridge`], [`crate::scan::shadow`]); what stays apart is a fragment. A second
 //!    large part standing on the ground is a second tree: refused.
 //! 5. Level sets of the geodesic distance from the trunk's base give the
 //!    fine skeleton ([`crate::scan::levels`]), pruned of stubs shorter than
@@ -28,12 +29,13 @@
 use nalgebra::{Point3, Vector3};
 use petgraph::unionfind::UnionFind;
 
-use crate::scan::bridge::{COVERED_MAX_GAP, LeafCover, MIN_PART_VOXELS, bridges};
+use crate::scan::bridge::{COVERED_MAX_GAP, Cover, Covered, MIN_PART_VOXELS, bridges};
 use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread};
 use crate::scan::fine::{FineSkeleton, fine_skeleton};
 use crate::scan::foliage::{FoliageClassifier, LEAFY_SHARE, call_foliage, is_foliage};
 use crate::scan::levels::Geodesic;
 use crate::scan::neighbours::{Graph, PointIndex, part_distance};
+use crate::scan::shadow::Shadows;
 use crate::scan::simplify::simplify;
 use crate::scan::skeleton::Skeleton;
 use crate::scan::viewpoint::Sensor;
@@ -74,6 +76,10 @@ pub struct ExtractParams {
     /// [`Sensor::Camera`], a cloud seen from one side has its branch axes
     /// moved back from the near surface.
     pub sensor: Sensor,
+    /// Where the sensor stood for each view (m), when known: a gap in a
+    /// branch's points hidden behind what it saw is then bridged as one
+    /// under leaves is ([`crate::scan::shadow`]).
+    pub viewpoints: Vec<Point3<f64>>,
 }
 
 /// How the extraction finds leaves.
@@ -103,6 +109,7 @@ impl Default for ExtractParams {
             max_gap: 0.06,
             foliage: FoliageFilter::Auto,
             sensor: Sensor::Unknown,
+            viewpoints: Vec::new(),
         }
     }
 }
@@ -123,6 +130,19 @@ impl ExtractParams {
             && !root.iter().all(|c| c.is_finite())
         {
             return bad("root must be finite");
+        }
+        if self.viewpoints.len() > MAX_VIEWPOINTS {
+            return Err(CloudError::BadParameter(format!(
+                "at most {MAX_VIEWPOINTS} viewpoints"
+            )));
+        }
+        if !self
+            .viewpoints
+            .iter()
+            .flat_map(|v| v.iter())
+            .all(|c| c.is_finite())
+        {
+            return bad("viewpoints must be finite");
         }
         if let Some(crop) = self.crop
             && (!(crop.min.iter().chain(crop.max.iter())).all(|c| c.is_finite())
@@ -171,6 +191,9 @@ pub struct Extraction {
     /// ([`crate::scan::viewpoint`]); said in a warning too.
     pub seen_from: Option<Point3<f64>>,
 }
+
+/// Most viewpoints a request may give: each is a depth image of the cloud.
+pub const MAX_VIEWPOINTS: usize = 64;
 
 /// Largest gap bridged once leaves were dropped by shape: the classifier
 /// takes some twig cubes with the leaves around them. Chosen on 42
@@ -381,8 +404,9 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
     };
 
     // Bridge parts to the tree (Kruskal over the parts' closest pairs).
-    let cover = LeafCover::new(
+    let cover = Cover::new(
         &leaves,
+        Shadows::new(&cloud.points, &params.viewpoints),
         leaf_chance.map(|c| cube_means(&c, &voxels.of_point, points.len())),
     );
     let bridges = bridges(points, &labels, &part_voxels, main, max_gap, cover.as_ref());
@@ -398,18 +422,27 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
     edges.retain(|b| in_tree[labels[b.from]]);
     if !edges.is_empty() {
         let largest = edges.iter().map(|b| b.gap).fold(0.0, f64::max);
-        let under = edges.iter().filter(|b| b.under_leaves).count();
+        let by = |c| edges.iter().filter(|b| b.covered == Some(c)).count();
+        let (leaves, shadow) = (by(Covered::Leaves), by(Covered::Shadow));
+        let mut covered = Vec::new();
+        if leaves > 0 {
+            covered.push(format!("{leaves} under leaves"));
+        }
+        if shadow > 0 {
+            covered.push(format!("{shadow} behind what the sensor saw"));
+        }
         warnings.push(format!(
             "{} gaps in the points were bridged (the largest {:.1} cm): occluded or unsampled stretches of branch{}",
             edges.len(),
             largest * 100.0,
-            if under > 0 {
+            if covered.is_empty() {
+                String::new()
+            } else {
                 format!(
-                    "; {under} of them under leaves (up to {:.0} cm), where only a few centimetres of a twig showed between its leaves: their branches are guessed straight across",
+                    "; {} (up to {:.0} cm), where only a few centimetres of a twig showed: their branches are guessed straight across",
+                    covered.join(", "),
                     COVERED_MAX_GAP * 100.0
                 )
-            } else {
-                String::new()
             }
         ));
     }

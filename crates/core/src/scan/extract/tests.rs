@@ -206,6 +206,86 @@ fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
     }
 }
 
+/// The same twig hidden but for its last 2 cm, now behind a board 40 cm
+/// in front of it (no leaves): told where the sensor stood, the extraction
+/// bridges the gap in the board's shadow and the tree reaches the stub;
+/// not told, or told a place from which the gap was in plain view, the
+/// stub stays a fragment.
+#[test]
+fn a_twig_hidden_behind_what_the_sensor_saw_is_bridged() {
+    let (fork, tip) = (Point3::new(0.0, 0.0, 0.4), Point3::new(0.25, 0.0, 0.43));
+    let tree = crate::tree::Tree::new(
+        vec![Point3::origin(), Point3::new(0.0, 0.0, 0.6), fork, tip],
+        vec![None, Some(0), Some(0), Some(2)],
+        vec![
+            None,
+            branch(0.02, 0.6),
+            branch(0.02, 0.4),
+            branch(0.005, (tip - fork).norm()),
+        ],
+    )
+    .unwrap();
+    let scanned = three_views(&tree, 5);
+    let along = |p: &Point3<f64>| (p - fork).dot(&(tip - fork)) / (tip - fork).norm_squared();
+    let stub = fork + (tip - fork) * 0.965;
+    let mut points: Vec<Point3<f64>> = scanned
+        .cloud
+        .points
+        .iter()
+        .zip(&scanned.origins)
+        .filter(|(p, o)| **o != Origin::Branch(3) || along(p) >= 0.93)
+        .map(|(p, _)| *p)
+        .collect();
+    // The board: 26 cm by 12 cm, 4 mm apart, in the plane y = -0.4.
+    for i in 0..=65 {
+        for k in 0..=30 {
+            points.push(Point3::new(0.004 * i as f64, -0.4, 0.36 + 0.004 * k as f64));
+        }
+    }
+    let cloud = PointCloud::new(points);
+    let from = |viewpoints: Vec<Point3<f64>>| {
+        extract(
+            &cloud,
+            &ExtractParams {
+                foliage: crate::scan::FoliageFilter::Off,
+                viewpoints,
+                ..ExtractParams::default()
+            },
+        )
+        .unwrap()
+    };
+    let reaches_stub = |found: &Extraction| {
+        let s = &found.skeleton;
+        (0..s.positions.len())
+            .filter_map(|j| {
+                s.parents[j].map(|p| point_segment(&stub, &s.positions[p], &s.positions[j]).0)
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let behind = from(vec![Point3::new(0.12, -1.5, 0.42)]);
+    assert!(reaches_stub(&behind) < 0.015, "{}", reaches_stub(&behind));
+    assert!(
+        behind
+            .warnings
+            .iter()
+            .any(|w| w.contains("behind what the sensor saw")),
+        "{:?}",
+        behind.warnings
+    );
+    for found in [from(Vec::new()), from(vec![Point3::new(0.12, 1.5, 0.42)])] {
+        assert!(reaches_stub(&found) > 0.05, "{}", reaches_stub(&found));
+        assert!(found.dropped.fragments > 0, "{:?}", found.dropped);
+    }
+    let bad = extract(
+        &cloud,
+        &ExtractParams {
+            viewpoints: vec![Point3::new(f64::NAN, 0.0, 0.0)],
+            ..ExtractParams::default()
+        },
+    );
+    assert!(matches!(bad, Err(CloudError::BadParameter(_))), "{bad:?}");
+}
+
 /// Without colours, a leafy cloud loses its leaves by shape (counted
 /// as foliage, said in a warning) and the tree comes back more
 /// precisely; a bare cloud keeps every point; `Off` keeps the leaves.

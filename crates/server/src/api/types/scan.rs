@@ -46,6 +46,13 @@ pub struct FromPointsRequest {
     /// What made the cloud (default `unknown`).
     #[serde(default)]
     pub sensor: Option<SensorJson>,
+    /// Where the sensor stood for each view (m; at most 64), when known:
+    /// a camera's own cloud, in its frame, was seen from the origin. A gap
+    /// in a branch's points that lies behind something the sensor saw is
+    /// then bridged as one under leaves is; one it looked through is not.
+    #[serde(default)]
+    #[schema(value_type = Option<Vec<Vec3>>, max_items = 64)]
+    pub viewpoints: Option<Vec<Vec<f64>>>,
 }
 
 /// What made the cloud. `unknown`: the skeleton stands where the points
@@ -116,6 +123,9 @@ pub struct FromPointsQuery {
     pub foliage: Option<FoliageJson>,
     /// What made the cloud: `unknown` (default) or `camera`.
     pub sensor: Option<SensorJson>,
+    /// Where the sensor stood for each view (m): `x,y,z` for each, all
+    /// comma-separated (`viewpoints=0,0,0,1.5,0,0.8`).
+    pub viewpoints: Option<String>,
 }
 
 /// An axis-aligned box (m).
