@@ -84,7 +84,11 @@ pub fn eval_scans(args: EvalScansArgs) -> anyhow::Result<()> {
             write_clouds(&trees, &condition, args.seed, dir)?;
         }
         let (row, extractions) = evaluate_condition(&trees, &condition, args.seed);
-        if let Some(dir) = &args.peers {
+        // Peers take no viewpoints: their rows are read once per cloud,
+        // beside ours told where the scanner stood.
+        if let Some(dir) = &args.peers
+            && condition.placed
+        {
             let mut answered = Vec::new();
             for peer in PEERS {
                 answered.extend(peer_row(&trees, &condition, dir, peer)?);
