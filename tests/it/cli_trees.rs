@@ -180,3 +180,85 @@ fn help_is_available_everywhere() {
         );
     }
 }
+
+/// `trees scan` prints where its scanner stood in the form `trees
+/// from-points` takes (negative coordinates included), and told so,
+/// `from-points` bridges what leaves and branches in front hid: the tree
+/// comes back with more of the true branches than without.
+#[test]
+fn a_scan_tells_from_points_where_it_was_seen_from() {
+    let out = temp_dir("scan_viewpoints");
+    let tree = treemanip::tree::generate(20, 2, &treemanip::tree::ScaParams::default()).unwrap();
+    let file = out.join("tree.urdf");
+    urdf::write_file(&tree, "tree", &treemanip::tree::Wood::default(), &file).unwrap();
+    let cloud = out.join("cloud.ply");
+    let scanned = treemanip(&[
+        "trees",
+        "scan",
+        file.to_str().unwrap(),
+        "--views",
+        "1",
+        "--noise",
+        "0.003",
+        "--leaves",
+        "8",
+        "--seed",
+        "2",
+        "--out",
+        cloud.to_str().unwrap(),
+    ]);
+    assert!(
+        scanned.status.success(),
+        "{}",
+        String::from_utf8_lossy(&scanned.stderr)
+    );
+    let printed = String::from_utf8_lossy(&scanned.stdout).to_string();
+    let viewpoints: Vec<&str> = printed
+        .lines()
+        .find_map(|l| l.strip_prefix("viewpoints: "))
+        .unwrap_or_else(|| panic!("{printed}"))
+        .split(' ')
+        .collect();
+    assert_eq!(viewpoints.len(), 1, "{printed}");
+    assert!(viewpoints[0].starts_with("--viewpoint="), "{printed}");
+    let recall = |extra: &[&str]| {
+        let json = out.join("found.json");
+        let mut args = vec![
+            "trees",
+            "from-points",
+            cloud.to_str().unwrap(),
+            "--out",
+            json.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let run = treemanip(&args);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let answer: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let t = &answer["tree"];
+        let positions: Vec<[f64; 3]> = serde_json::from_value(t["positions"].clone()).unwrap();
+        let radius: Vec<Option<f64>> = serde_json::from_value(t["radius"].clone()).unwrap();
+        let found = treemanip::scan::Skeleton {
+            positions: positions
+                .iter()
+                .map(|p| nalgebra::Point3::from(*p))
+                .collect(),
+            parents: serde_json::from_value(t["parents"].clone()).unwrap(),
+            radius: radius.iter().map(|r| r.unwrap_or(0.005)).collect(),
+        };
+        let score = treemanip::scan::score(&treemanip::scan::Skeleton::of_tree(&tree), &found);
+        (
+            score.recall[1],
+            String::from_utf8_lossy(&run.stderr).to_string(),
+        )
+    };
+    let (blind, _) = recall(&[]);
+    let (told, said) = recall(&viewpoints);
+    assert!(told > blind, "{told} {blind}");
+    assert!(said.contains("behind what the sensor saw"), "{said}");
+    // A viewpoint with a negative coordinate in the next argument's form.
+    let (_, _) = recall(&["--viewpoint", "-1.5,0,0.8"]);
+}

@@ -75,7 +75,7 @@ pub fn scan_cmd(args: ScanArgs) -> anyhow::Result<()> {
         "viewpoints: {}",
         scan.viewpoints
             .iter()
-            .map(|v| format!("--viewpoint {:.4},{:.4},{:.4}", v.x, v.y, v.z))
+            .map(|v| format!("--viewpoint={:.4},{:.4},{:.4}", v.x, v.y, v.z))
             .collect::<Vec<_>>()
             .join(" ")
     );
@@ -102,13 +102,13 @@ pub struct FromPointsArgs {
     #[arg(long, default_value_t = treemanip::scan::extract::DEFAULT_SPACING)]
     spacing: f64,
     /// The trunk's base, `x,y,z` (m).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     root: Option<String>,
     /// Which way is up, `x,y,z` (default `0,0,1`).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     up: Option<String>,
     /// Only points in this box: `min_x,min_y,min_z,max_x,max_y,max_z` (m).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     crop: Option<String>,
     /// Largest cloud read (points).
     #[arg(long, default_value_t = treemanip::scan::extract::DEFAULT_MAX_POINTS)]
@@ -126,7 +126,7 @@ pub struct FromPointsArgs {
     /// Where the sensor stood, `x,y,z` (m), once per view (`0,0,0` for a
     /// camera's own cloud, in its frame): gaps hidden behind what it saw
     /// are then bridged as gaps under leaves are.
-    #[arg(long = "viewpoint")]
+    #[arg(long = "viewpoint", allow_hyphen_values = true)]
     viewpoints: Vec<String>,
 }
 

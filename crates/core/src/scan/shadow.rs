@@ -9,11 +9,9 @@
 //!
 //! Each viewpoint's returns go into a depth image: a pinhole camera looking
 //! at the cloud's centre, square pixels [`PIXEL`] radians across, each
-//! keeping its nearest return. A point is hidden when some pixel within one
+//! keeping its nearest return (at most about 1,000 pixels a side, 4 MB). A point is hidden when some pixel within one
 //! of its own has a return at least [`IN_FRONT`] nearer: the one-pixel
 //! margin stands for the gaps between returns on a surface.
-
-use std::collections::HashMap;
 
 use nalgebra::{Point3, Vector3};
 
@@ -32,34 +30,76 @@ struct View {
     eye: Point3<f64>,
     /// The view's axis (towards the cloud's centre) and two axes across.
     axes: [Vector3<f64>; 3],
-    nearest: HashMap<(i32, i32), f64>,
+    /// The image's first pixel and its size in pixels (the returns'
+    /// extent, at most `2 · tan(MAX_OFF_AXIS) / PIXEL` a side).
+    origin: (i64, i64),
+    size: (usize, usize),
+    /// Each pixel's nearest return (m), row by row; infinite where none.
+    nearest: Vec<f32>,
 }
 
 impl View {
-    /// The pixel `p` falls in and its range, if the view images it.
-    fn pixel(&self, p: &Point3<f64>) -> Option<((i32, i32), f64)> {
-        let d = p - self.eye;
+    /// The pixel `p` falls in (unbounded) and its range, if the view's
+    /// cone holds it.
+    fn pixel(
+        eye: &Point3<f64>,
+        axes: &[Vector3<f64>; 3],
+        p: &Point3<f64>,
+    ) -> Option<((i64, i64), f64)> {
+        let d = p - eye;
         let range = d.norm();
-        let ahead = d.dot(&self.axes[0]);
+        let ahead = d.dot(&axes[0]);
         if range <= 0.0 || ahead <= range * MAX_OFF_AXIS.cos() {
             return None;
         }
-        let (u, v) = (d.dot(&self.axes[1]) / ahead, d.dot(&self.axes[2]) / ahead);
+        let (u, v) = (d.dot(&axes[1]) / ahead, d.dot(&axes[2]) / ahead);
         Some((
-            ((u / PIXEL).floor() as i32, (v / PIXEL).floor() as i32),
+            ((u / PIXEL).floor() as i64, (v / PIXEL).floor() as i64),
             range,
         ))
     }
 
+    fn new(eye: Point3<f64>, axes: [Vector3<f64>; 3], returns: &[Point3<f64>]) -> Option<Self> {
+        let seen: Vec<((i64, i64), f64)> = returns
+            .iter()
+            .filter_map(|p| Self::pixel(&eye, &axes, p))
+            .collect();
+        let (lo, hi) = seen.iter().fold(
+            ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN)),
+            |(lo, hi), &((i, j), _)| ((lo.0.min(i), lo.1.min(j)), (hi.0.max(i), hi.1.max(j))),
+        );
+        if seen.is_empty() {
+            return None;
+        }
+        let size = ((hi.0 - lo.0 + 1) as usize, (hi.1 - lo.1 + 1) as usize);
+        let mut view = Self {
+            eye,
+            axes,
+            origin: lo,
+            size,
+            nearest: vec![f32::INFINITY; size.0 * size.1],
+        };
+        for ((i, j), range) in seen {
+            let k = view.index(i, j).expect("within the extent");
+            view.nearest[k] = view.nearest[k].min(range as f32);
+        }
+        Some(view)
+    }
+
+    fn index(&self, i: i64, j: i64) -> Option<usize> {
+        let (x, y) = (i - self.origin.0, j - self.origin.1);
+        (x >= 0 && y >= 0 && (x as usize) < self.size.0 && (y as usize) < self.size.1)
+            .then(|| y as usize * self.size.0 + x as usize)
+    }
+
     fn hides(&self, p: &Point3<f64>) -> bool {
-        let Some(((i, j), range)) = self.pixel(p) else {
+        let Some(((i, j), range)) = Self::pixel(&self.eye, &self.axes, p) else {
             return false;
         };
         (-1..=1).any(|di| {
             (-1..=1).any(|dj| {
-                self.nearest
-                    .get(&(i + di, j + dj))
-                    .is_some_and(|&r| r <= range - IN_FRONT)
+                self.index(i + di, j + dj)
+                    .is_some_and(|k| f64::from(self.nearest[k]) <= range - IN_FRONT)
             })
         })
     }
@@ -91,18 +131,7 @@ impl Shadows {
                     Vector3::x()
                 };
                 let across = axis.cross(&helper).normalize();
-                let mut view = View {
-                    eye,
-                    axes: [axis, across, axis.cross(&across)],
-                    nearest: HashMap::new(),
-                };
-                for p in returns {
-                    if let Some((px, range)) = view.pixel(p) {
-                        let slot = view.nearest.entry(px).or_insert(range);
-                        *slot = slot.min(range);
-                    }
-                }
-                Some(view)
+                View::new(eye, [axis, across, axis.cross(&across)], returns)
             })
             .collect::<Vec<_>>();
         (!views.is_empty()).then_some(Self { views })

@@ -435,8 +435,8 @@ fn a_cloud_told_where_its_camera_stood_bridges_what_was_hidden() {
             "viewpoints",
         ),
         (
-            json!({ "points": points, "viewpoints": vec![[0.0, 0.0, 1.0]; 65] }),
-            "64",
+            json!({ "points": points, "viewpoints": vec![[0.0, 0.0, 1.0]; 17] }),
+            "16",
         ),
     ] {
         let (status, bad) = server.json("POST", "/v1/trees/from-points", &body);

@@ -192,8 +192,9 @@ pub struct Extraction {
     pub seen_from: Option<Point3<f64>>,
 }
 
-/// Most viewpoints a request may give: each is a depth image of the cloud.
-pub const MAX_VIEWPOINTS: usize = 64;
+/// Most viewpoints a request may give: each is a depth image of the cloud
+/// (at most about 4 MB, one pass over the points).
+pub const MAX_VIEWPOINTS: usize = 16;
 
 /// Largest gap bridged once leaves were dropped by shape: the classifier
 /// takes some twig cubes with the leaves around them. Chosen on 42

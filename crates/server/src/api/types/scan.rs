@@ -46,12 +46,12 @@ pub struct FromPointsRequest {
     /// What made the cloud (default `unknown`).
     #[serde(default)]
     pub sensor: Option<SensorJson>,
-    /// Where the sensor stood for each view (m; at most 64), when known:
+    /// Where the sensor stood for each view (m; at most 16), when known:
     /// a camera's own cloud, in its frame, was seen from the origin. A gap
     /// in a branch's points that lies behind something the sensor saw is
     /// then bridged as one under leaves is; one it looked through is not.
     #[serde(default)]
-    #[schema(value_type = Option<Vec<Vec3>>, max_items = 64)]
+    #[schema(value_type = Option<Vec<Vec3>>, max_items = 16)]
     pub viewpoints: Option<Vec<Vec<f64>>>,
 }
 
