@@ -4,7 +4,7 @@
 
 use serde_json::{Value, json};
 use treemanip_core::scan::io::ply;
-use treemanip_core::scan::{PointCloud, ScanParams, Skeleton, scan, score};
+use treemanip_core::scan::{PointCloud, Scan, ScanParams, Skeleton, scan, score};
 use treemanip_core::tree::{ScaParams, Tree, generate};
 
 use crate::common::server::Server;
@@ -17,6 +17,21 @@ fn scanned() -> (Tree, PointCloud) {
         ..ScanParams::default()
     };
     (tree.clone(), scan(&tree, &params).unwrap().cloud)
+}
+
+/// A 20-node tree of generator seed `tree_seed` seen from one viewpoint
+/// at 3 mm, with `leaves` per twig.
+fn one_view(tree_seed: u64, scan_seed: u64, leaves: usize) -> (Tree, Scan) {
+    let tree = generate(20, tree_seed, &ScaParams::default()).unwrap();
+    let params = ScanParams {
+        viewpoints: 1,
+        noise: 0.003,
+        leaves_per_twig: leaves,
+        seed: scan_seed,
+        ..ScanParams::default()
+    };
+    let scanned = scan(&tree, &params).unwrap();
+    (tree, scanned)
 }
 
 fn ply_bytes(cloud: &PointCloud) -> Vec<u8> {
@@ -287,17 +302,7 @@ fn leaves_go_by_shape_unless_foliage_is_off() {
 #[test]
 fn a_camera_cloud_seen_from_one_side_has_its_axes_moved_back() {
     let server = Server::start(&[]);
-    let tree = generate(20, 5, &ScaParams::default()).unwrap();
-    let cloud = scan(
-        &tree,
-        &ScanParams {
-            viewpoints: 1,
-            noise: 0.003,
-            seed: 4,
-            ..ScanParams::default()
-        },
-    )
-    .unwrap();
+    let (tree, cloud) = one_view(5, 4, 0);
     let camera_at = cloud.viewpoints[0];
     let cloud = PointCloud::new(cloud.cloud.points);
     let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| [p.x, p.y, p.z]).collect();
@@ -375,18 +380,7 @@ fn a_camera_cloud_seen_from_one_side_has_its_axes_moved_back() {
 #[test]
 fn a_cloud_told_where_its_camera_stood_bridges_what_was_hidden() {
     let server = Server::start(&[]);
-    let tree = generate(20, 2, &ScaParams::default()).unwrap();
-    let scanned = scan(
-        &tree,
-        &ScanParams {
-            viewpoints: 1,
-            noise: 0.003,
-            leaves_per_twig: 8,
-            seed: 2,
-            ..ScanParams::default()
-        },
-    )
-    .unwrap();
+    let (tree, scanned) = one_view(2, 2, 8);
     let eye = scanned.viewpoints[0];
     let cloud = scanned.cloud;
     let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| [p.x, p.y, p.z]).collect();

@@ -122,13 +122,18 @@ fn a_fork_seen_apart_from_its_trunk_is_bridged() {
     assert!(found.warnings.iter().any(|w| w.contains("bridged")));
 }
 
-/// A twig hidden by its leaves but for its last 2 cm: that stub is too
-/// short to look like a branch and 20 cm from the stem, so across bare air
-/// it is a fragment; where the leaves dropped from the cloud cover the gap,
-/// it is bridged to the stem and the tree reaches it, and the warning says
-/// so. Leaves beside the gap, not over it, bridge nothing.
-#[test]
-fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
+/// A stem with a 25 cm twig from a fork 40 cm up, scanned from three sides,
+/// the twig's points removed but for its last 2 cm (the stub).
+struct HiddenTwig {
+    fork: Point3<f64>,
+    tip: Point3<f64>,
+    /// The stub's middle.
+    stub: Point3<f64>,
+    /// What is left of the scan.
+    bark: Vec<Point3<f64>>,
+}
+
+fn hidden_twig() -> HiddenTwig {
     let (fork, tip) = (Point3::new(0.0, 0.0, 0.4), Point3::new(0.25, 0.0, 0.43));
     let tree = crate::tree::Tree::new(
         vec![Point3::origin(), Point3::new(0.0, 0.0, 0.6), fork, tip],
@@ -144,8 +149,7 @@ fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
     let scanned = three_views(&tree, 5);
     // Along the twig, 0 at the fork and 1 at the tip.
     let along = |p: &Point3<f64>| (p - fork).dot(&(tip - fork)) / (tip - fork).norm_squared();
-    let stub = fork + (tip - fork) * 0.965;
-    let bark: Vec<Point3<f64>> = scanned
+    let bark = scanned
         .cloud
         .points
         .iter()
@@ -153,6 +157,34 @@ fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
         .filter(|(p, o)| **o != Origin::Branch(3) || along(p) >= 0.93)
         .map(|(p, _)| *p)
         .collect();
+    HiddenTwig {
+        fork,
+        tip,
+        stub: fork + (tip - fork) * 0.965,
+        bark,
+    }
+}
+
+/// How far (m) the skeleton passes from `at`.
+fn distance_to(s: &Skeleton, at: &Point3<f64>) -> f64 {
+    (0..s.positions.len())
+        .filter_map(|j| s.parents[j].map(|p| point_segment(at, &s.positions[p], &s.positions[j]).0))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// A twig hidden by its leaves but for its last 2 cm: that stub is too
+/// short to look like a branch and 20 cm from the stem, so across bare air
+/// it is a fragment; where the leaves dropped from the cloud cover the gap,
+/// it is bridged to the stem and the tree reaches it, and the warning says
+/// so. Leaves beside the gap, not over it, bridge nothing.
+#[test]
+fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
+    let HiddenTwig {
+        fork,
+        tip,
+        stub,
+        bark,
+    } = hidden_twig();
     // Leaves: 2.5 cm discs 2 cm beside the hidden stretch, every 2 cm.
     let leaves_at = |shift: Vector3<f64>| -> Vec<Point3<f64>> {
         let mut out = Vec::new();
@@ -180,14 +212,7 @@ fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
         );
         extract(&cloud, &ExtractParams::default()).unwrap()
     };
-    let reaches_stub = |found: &Extraction| {
-        let s = &found.skeleton;
-        (0..s.positions.len())
-            .filter_map(|j| {
-                s.parents[j].map(|p| point_segment(&stub, &s.positions[p], &s.positions[j]).0)
-            })
-            .fold(f64::INFINITY, f64::min)
-    };
+    let reaches_stub = |found: &Extraction| distance_to(&found.skeleton, &stub);
 
     let covered = coloured(leaves_at(Vector3::zeros()));
     assert!(reaches_stub(&covered) < 0.015, "{}", reaches_stub(&covered));
@@ -213,29 +238,11 @@ fn a_twig_hidden_by_its_leaves_is_bridged_under_them() {
 /// stub stays a fragment.
 #[test]
 fn a_twig_hidden_behind_what_the_sensor_saw_is_bridged() {
-    let (fork, tip) = (Point3::new(0.0, 0.0, 0.4), Point3::new(0.25, 0.0, 0.43));
-    let tree = crate::tree::Tree::new(
-        vec![Point3::origin(), Point3::new(0.0, 0.0, 0.6), fork, tip],
-        vec![None, Some(0), Some(0), Some(2)],
-        vec![
-            None,
-            branch(0.02, 0.6),
-            branch(0.02, 0.4),
-            branch(0.005, (tip - fork).norm()),
-        ],
-    )
-    .unwrap();
-    let scanned = three_views(&tree, 5);
-    let along = |p: &Point3<f64>| (p - fork).dot(&(tip - fork)) / (tip - fork).norm_squared();
-    let stub = fork + (tip - fork) * 0.965;
-    let mut points: Vec<Point3<f64>> = scanned
-        .cloud
-        .points
-        .iter()
-        .zip(&scanned.origins)
-        .filter(|(p, o)| **o != Origin::Branch(3) || along(p) >= 0.93)
-        .map(|(p, _)| *p)
-        .collect();
+    let HiddenTwig {
+        stub,
+        bark: mut points,
+        ..
+    } = hidden_twig();
     // The board: 26 cm by 12 cm, 4 mm apart, in the plane y = -0.4.
     for i in 0..=65 {
         for k in 0..=30 {
@@ -254,14 +261,7 @@ fn a_twig_hidden_behind_what_the_sensor_saw_is_bridged() {
         )
         .unwrap()
     };
-    let reaches_stub = |found: &Extraction| {
-        let s = &found.skeleton;
-        (0..s.positions.len())
-            .filter_map(|j| {
-                s.parents[j].map(|p| point_segment(&stub, &s.positions[p], &s.positions[j]).0)
-            })
-            .fold(f64::INFINITY, f64::min)
-    };
+    let reaches_stub = |found: &Extraction| distance_to(&found.skeleton, &stub);
     let behind = from(vec![Point3::new(0.12, -1.5, 0.42)]);
     assert!(reaches_stub(&behind) < 0.015, "{}", reaches_stub(&behind));
     assert!(
