@@ -399,6 +399,14 @@ fn a_cloud_told_where_its_camera_stood_bridges_what_was_hidden() {
     );
     assert_eq!(status, 200, "{blind}");
     assert!(!hidden(&blind), "{}", blind["warnings"]);
+    let asks = |answer: &Value| {
+        answer["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("send where the sensor stood"))
+    };
+    assert!(asks(&blind), "{}", blind["warnings"]);
     let (status, told) = server.json(
         "POST",
         "/v1/trees/from-points",
@@ -406,6 +414,7 @@ fn a_cloud_told_where_its_camera_stood_bridges_what_was_hidden() {
     );
     assert_eq!(status, 200, "{told}");
     assert!(hidden(&told), "{}", told["warnings"]);
+    assert!(!asks(&told), "{}", told["warnings"]);
     let truth = Skeleton::of_tree(&tree);
     let (a, b) = (
         score(&truth, &skeleton_of(&told)),

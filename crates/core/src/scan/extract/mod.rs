@@ -543,6 +543,11 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
         params.sensor,
     );
     warnings.extend(notes);
+    if seen_from.is_some() && params.viewpoints.is_empty() {
+        warnings.push(
+            "send where the sensor stood (`viewpoints`; [0, 0, 0] for a cloud in the camera's own frame): gaps hidden behind leaves and branches in front are then bridged".to_owned(),
+        );
+    }
     let (skeleton, confidence) =
         simplify(&fine, &fine_confidence, params.spacing, seen_from.is_some());
     Ok(Extraction {
