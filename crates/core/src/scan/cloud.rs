@@ -67,6 +67,14 @@ pub enum CloudError {
     },
     #[error("`up` must be a finite, non-zero vector")]
     BadUp,
+    #[error(
+        "viewpoint {index} lies among the points ({distance:.3} m from the nearest; a sensor sees them from at least {min:.3} m): send where the sensor stood in the cloud's own frame"
+    )]
+    ViewpointAmongPoints {
+        index: usize,
+        distance: f64,
+        min: f64,
+    },
     #[error("{0}")]
     BadParameter(String),
     #[error(

@@ -309,6 +309,7 @@ pub fn cloud_error(e: CloudError) -> ApiError {
         CloudError::TooMany { .. } => return ApiError::too_large(e.to_string()),
         CloudError::RootOutside { .. } => "root",
         CloudError::BadUp => "up",
+        CloudError::ViewpointAmongPoints { .. } => "viewpoints",
         CloudError::TooFewInCrop { .. } => "crop",
         CloudError::LengthMismatch { field, .. } => field,
         CloudError::BadParameter(_) => "options",

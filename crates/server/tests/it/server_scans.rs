@@ -441,6 +441,10 @@ fn a_cloud_told_where_its_camera_stood_bridges_what_was_hidden() {
             json!({ "points": points, "viewpoints": vec![[0.0, 0.0, 1.0]; 17] }),
             "16",
         ),
+        (
+            json!({ "points": points, "viewpoints": [[0.0, 0.0, 0.0]] }),
+            "lies among the points",
+        ),
     ] {
         let (status, bad) = server.json("POST", "/v1/trees/from-points", &body);
         assert!(status == 400 || status == 422, "{status} {bad}");

@@ -284,6 +284,21 @@ fn a_twig_hidden_behind_what_the_sensor_saw_is_bridged() {
         },
     );
     assert!(matches!(bad, Err(CloudError::BadParameter(_))), "{bad:?}");
+    // The trunk's foot: a world frame's origin sent as a camera's.
+    let among = extract(
+        &cloud,
+        &ExtractParams {
+            viewpoints: vec![Point3::new(0.2, 0.0, 0.8), Point3::origin()],
+            ..ExtractParams::default()
+        },
+    );
+    assert!(
+        matches!(
+            among,
+            Err(CloudError::ViewpointAmongPoints { index: 1, .. })
+        ),
+        "{among:?}"
+    );
 }
 
 /// Without colours, a leafy cloud loses its leaves by shape (counted
