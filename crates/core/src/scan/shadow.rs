@@ -15,6 +15,8 @@
 
 use nalgebra::{Point3, Vector3};
 
+use crate::scan::CloudError;
+
 /// A depth image's pixel (radians): 7.5 mm at 1.5 m, coarser than the
 /// spacing of a camera's or a terrestrial scanner's returns at that range.
 pub const PIXEL: f64 = 0.005;
@@ -103,6 +105,34 @@ impl View {
             })
         })
     }
+}
+
+/// The nearest (m) a sensor's returns may be to it: a close-range depth
+/// camera's least range is 7 cm.
+pub const MIN_SENSOR_RANGE: f64 = 0.05;
+
+/// A sensor stands apart from what it sees: a viewpoint among the points
+/// was given in another frame (a world frame's origin at the trunk's foot
+/// sent as a camera's `[0, 0, 0]`), and its shadows would be nonsense.
+pub fn check_viewpoints(
+    returns: &[Point3<f64>],
+    viewpoints: &[Point3<f64>],
+) -> Result<(), CloudError> {
+    for (index, eye) in viewpoints.iter().enumerate() {
+        let distance = returns
+            .iter()
+            .map(|p| (p - eye).norm_squared())
+            .fold(f64::INFINITY, f64::min)
+            .sqrt();
+        if distance < MIN_SENSOR_RANGE {
+            return Err(CloudError::ViewpointAmongPoints {
+                index,
+                distance,
+                min: MIN_SENSOR_RANGE,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The shadows of a cloud's returns from the viewpoints it was seen from.

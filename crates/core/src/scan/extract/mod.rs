@@ -35,7 +35,7 @@ use crate::scan::fine::{FineSkeleton, fine_skeleton};
 use crate::scan::foliage::{FoliageClassifier, LEAFY_SHARE, call_foliage, is_foliage};
 use crate::scan::levels::Geodesic;
 use crate::scan::neighbours::{Graph, PointIndex, part_distance};
-use crate::scan::shadow::Shadows;
+use crate::scan::shadow::{Shadows, check_viewpoints};
 use crate::scan::simplify::simplify;
 use crate::scan::skeleton::Skeleton;
 use crate::scan::viewpoint::Sensor;
@@ -192,10 +192,6 @@ pub struct Extraction {
     pub seen_from: Option<Point3<f64>>,
 }
 
-/// The nearest (m) a sensor's returns may be to it: a close-range depth
-/// camera's least range is 7 cm.
-pub const MIN_SENSOR_RANGE: f64 = 0.05;
-
 /// Most viewpoints a request may give: each is a depth image of the cloud
 /// (at most about 4 MB, one pass over the points).
 pub const MAX_VIEWPOINTS: usize = 16;
@@ -267,25 +263,7 @@ impl From<CloudError> for Refused {
 fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction, Refused> {
     let up = params.validate()?;
     cloud.check(params.max_points)?;
-    // A sensor stands apart from what it sees: a viewpoint among the points
-    // is one given in another frame (a world frame's origin at the trunk's
-    // foot for a camera's [0, 0, 0]), and its shadows would be nonsense.
-    for (index, eye) in params.viewpoints.iter().enumerate() {
-        let distance = cloud
-            .points
-            .iter()
-            .map(|p| (p - eye).norm_squared())
-            .fold(f64::INFINITY, f64::min)
-            .sqrt();
-        if distance < MIN_SENSOR_RANGE {
-            return Err(CloudError::ViewpointAmongPoints {
-                index,
-                distance,
-                min: MIN_SENSOR_RANGE,
-            }
-            .into());
-        }
-    }
+    check_viewpoints(&cloud.points, &params.viewpoints)?;
     let mut dropped = Dropped::default();
     let inside: Vec<usize> = (0..cloud.len())
         .filter(|&i| params.crop.is_none_or(|c| c.contains(&cloud.points[i])))
