@@ -8,18 +8,25 @@
 //! leaves is: [`crate::scan::bridge`]) from one it looked through.
 //!
 //! Each viewpoint's returns go into a depth image: a pinhole camera looking
-//! at the cloud's centre, square pixels [`PIXEL`] radians across, each
-//! keeping its nearest return (at most about 1,000 pixels a side, 4 MB). A point is hidden when some pixel within one
-//! of its own has a return at least [`IN_FRONT`] nearer: the one-pixel
-//! margin stands for the gaps between returns on a surface.
+//! at the cloud's centre, square pixels [`PIXEL_AT_TREE`] across at the
+//! returns' median range (the tree's scale, leaves and twigs, whatever the
+//! sensor's distance), each keeping its nearest return. A point is hidden
+//! when some pixel within one of its own has a return at least
+//! [`IN_FRONT`] nearer: the one-pixel margin stands for the gaps between
+//! returns on a surface. A sparse scan leaves pixels empty, which reads as
+//! seen: it bridges less, never more.
 
 use nalgebra::{Point3, Vector3};
 
 use crate::scan::CloudError;
 
-/// A depth image's pixel (radians): 7.5 mm at 1.5 m, coarser than the
-/// spacing of a camera's or a terrestrial scanner's returns at that range.
-pub const PIXEL: f64 = 0.005;
+/// A depth image's pixel (m) at the returns' median range: coarser than
+/// the spacing of a camera's or a terrestrial scanner's returns on a tree
+/// (5 mrad at 1.5 m), finer than a leaf.
+pub const PIXEL_AT_TREE: f64 = 0.0075;
+/// Bounds on a pixel's angle (radians): at most about 5,000 pixels across
+/// the view's cone, at least a coarse 0.05 rad.
+const PIXEL_ANGLE: (f64, f64) = (0.001, 0.05);
 /// A return hides what lies at least this much (m) farther along its ray:
 /// more than depth noise and a twig's own thickness, so a branch does not
 /// hide itself.
@@ -30,10 +37,12 @@ const MAX_OFF_AXIS: f64 = 1.2;
 /// One viewpoint's depth image.
 struct View {
     eye: Point3<f64>,
+    /// The pixel's angle (radians).
+    pixel: f64,
     /// The view's axis (towards the cloud's centre) and two axes across.
     axes: [Vector3<f64>; 3],
     /// The image's first pixel and its size in pixels (the returns'
-    /// extent, at most `2 · tan(MAX_OFF_AXIS) / PIXEL` a side).
+    /// extent, at most `2 · tan(MAX_OFF_AXIS) / pixel` a side).
     origin: (i64, i64),
     size: (usize, usize),
     /// Each pixel's nearest return (m), row by row; infinite where none.
@@ -41,41 +50,63 @@ struct View {
 }
 
 impl View {
-    /// The pixel `p` falls in (unbounded) and its range, if the view's
-    /// cone holds it.
-    fn pixel(
+    /// Where `p` falls on the image plane (tangents of its angles off the
+    /// axis) and its range, if the view's cone holds it.
+    fn project(
         eye: &Point3<f64>,
         axes: &[Vector3<f64>; 3],
         p: &Point3<f64>,
-    ) -> Option<((i64, i64), f64)> {
+    ) -> Option<((f64, f64), f64)> {
         let d = p - eye;
         let range = d.norm();
         let ahead = d.dot(&axes[0]);
         if range <= 0.0 || ahead <= range * MAX_OFF_AXIS.cos() {
             return None;
         }
-        let (u, v) = (d.dot(&axes[1]) / ahead, d.dot(&axes[2]) / ahead);
+        Some(((d.dot(&axes[1]) / ahead, d.dot(&axes[2]) / ahead), range))
+    }
+
+    /// The pixel `p` falls in (unbounded) and its range.
+    fn pixel(&self, p: &Point3<f64>) -> Option<((i64, i64), f64)> {
+        let ((u, v), range) = Self::project(&self.eye, &self.axes, p)?;
         Some((
-            ((u / PIXEL).floor() as i64, (v / PIXEL).floor() as i64),
+            (
+                (u / self.pixel).floor() as i64,
+                (v / self.pixel).floor() as i64,
+            ),
             range,
         ))
     }
 
     fn new(eye: Point3<f64>, axes: [Vector3<f64>; 3], returns: &[Point3<f64>]) -> Option<Self> {
-        let seen: Vec<((i64, i64), f64)> = returns
+        let projected: Vec<((f64, f64), f64)> = returns
             .iter()
-            .filter_map(|p| Self::pixel(&eye, &axes, p))
+            .filter_map(|p| Self::project(&eye, &axes, p))
+            .collect();
+        if projected.is_empty() {
+            return None;
+        }
+        let mut ranges: Vec<f64> = projected.iter().map(|&(_, r)| r).collect();
+        let mid = ranges.len() / 2;
+        let median = *ranges.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let pixel = (PIXEL_AT_TREE / median).clamp(PIXEL_ANGLE.0, PIXEL_ANGLE.1);
+        let seen: Vec<((i64, i64), f64)> = projected
+            .iter()
+            .map(|&((u, v), range)| {
+                (
+                    ((u / pixel).floor() as i64, (v / pixel).floor() as i64),
+                    range,
+                )
+            })
             .collect();
         let (lo, hi) = seen.iter().fold(
             ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN)),
             |(lo, hi), &((i, j), _)| ((lo.0.min(i), lo.1.min(j)), (hi.0.max(i), hi.1.max(j))),
         );
-        if seen.is_empty() {
-            return None;
-        }
         let size = ((hi.0 - lo.0 + 1) as usize, (hi.1 - lo.1 + 1) as usize);
         let mut view = Self {
             eye,
+            pixel,
             axes,
             origin: lo,
             size,
@@ -95,7 +126,7 @@ impl View {
     }
 
     fn hides(&self, p: &Point3<f64>) -> bool {
-        let Some(((i, j), range)) = Self::pixel(&self.eye, &self.axes, p) else {
+        let Some(((i, j), range)) = self.pixel(p) else {
             return false;
         };
         (-1..=1).any(|di| {
@@ -180,8 +211,9 @@ mod tests {
 
     /// A leaf-sized patch of returns 30 cm in front of a point hides it
     /// from a sensor behind the patch, not from one to the side, and not
-    /// a point beside the patch's shadow; a point in front of every return
-    /// is not hidden; two views hide only what both miss.
+    /// a point beside the patch's shadow, from 1.2 m or 12 m; a point in
+    /// front of every return is not hidden; two views hide only what both
+    /// miss.
     #[test]
     fn a_patch_hides_what_lies_behind_it_and_nothing_else() {
         // A 5 cm square of returns 5 mm apart in the plane x = 1.2.
@@ -218,6 +250,11 @@ mod tests {
             !shadows.hidden(&Point3::new(1.21, 0.0, 1.0)),
             "on the patch itself: within noise of its returns"
         );
+        // From 12 m, pixels keep the tree's scale: the shadow is still the
+        // patch's, not 10 cm wider.
+        let far = Shadows::new(&patch, &[Point3::new(-10.8, 0.0, 1.0)]).unwrap();
+        assert!(far.hidden(&Point3::new(1.5, 0.0, 1.0)));
+        assert!(!far.hidden(&Point3::new(1.5, 0.1, 1.0)));
         // A second sensor to the side sees behind the patch.
         let side = Point3::new(1.5, -1.5, 1.0);
         let both = Shadows::new(&patch, &[front, side]).unwrap();
