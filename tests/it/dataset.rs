@@ -5,9 +5,9 @@ use std::process::Command;
 
 use crate::common::{temp_dir, treemanip};
 use serde_json::Value;
-use treemanip::dataset::collect::{CollectConfig, collect_size};
+use treemanip::dataset::collect::{CAUGHT_AT_BASE, CollectConfig, collect_size};
 use treemanip::dataset::{Split, read_size_file, write_size_file};
-use treemanip::sim::{Push, SimConfig, simulate};
+use treemanip::sim::{Hold, Push, SimConfig, simulate};
 
 fn small_config() -> CollectConfig {
     CollectConfig {
@@ -86,6 +86,15 @@ fn pushes_follow_the_papers_distribution() {
         / 200.0;
     assert!((stats.no_action_error - mean).abs() < 1e-12);
     assert!(stats.max_kkt_residual < 1e-8);
+    // A push whose slot slid back to its branch's base fork moved that
+    // fork, not its node: it is left out (as a lost branch was before
+    // the simulator caught it there), so the data keep the pushes they had.
+    assert!(data.episodes.iter().all(|e| e.hold != Hold::AtBase));
+    assert!(
+        stats.discarded.get(CAUGHT_AT_BASE).is_some_and(|&k| k > 0),
+        "{:?}",
+        stats.discarded
+    );
 }
 
 #[test]

@@ -412,10 +412,10 @@ fn render(args: RenderArgs) -> anyhow::Result<()> {
             title: format!(
                 "{name} episode {k}: node {node} pushed {:.1} cm{}",
                 100.0 * episode.push.vector.norm(),
-                if episode.hold == Hold::AtNode {
-                    " (held at the node)"
-                } else {
-                    ""
+                match episode.hold {
+                    Hold::AtNode => " (held at the node)",
+                    Hold::AtBase => " (held at the base fork)",
+                    Hold::OnAxis => "",
                 }
             ),
             layers: vec![

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use super::{Episode, SizeData, Split};
 use crate::seed::derive_seed;
 use crate::sim::sampling::PushDistribution;
-use crate::sim::{ContactModel, SimConfig, simulate};
+use crate::sim::{ContactModel, Hold, SimConfig, simulate};
 use crate::tree::collection::{CollectionError, TreeShape, tree_set};
 
 fn is_sca(shape: &TreeShape) -> bool {
@@ -70,13 +70,18 @@ impl Default for CollectConfig {
     }
 }
 
+/// The discard reason of a push whose slot slid back to the base fork
+/// ([`Hold::AtBase`]).
+pub const CAUGHT_AT_BASE: &str = "caught_at_base";
+
 /// What collecting one file took and found.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SizeStats {
     pub split: Split,
     pub n: usize,
     pub kept: usize,
-    /// Discarded pushes by reason (`lost_branch`, `out_of_reach`, …).
+    /// Discarded pushes by reason (`lost_branch`, `out_of_reach`,
+    /// [`CAUGHT_AT_BASE`], …).
     pub discarded: BTreeMap<String, usize>,
     /// Pushes where the slot slid to a fork and held the node there.
     pub caught_at_fork: usize,
@@ -176,6 +181,22 @@ pub fn collect_size(
             loop {
                 let push = config.pushes.sample(tree, &mut rng);
                 match simulate(tree, &push, &sim) {
+                    // The slot slid back to the base fork: the push moved
+                    // that node, not the one drawn. Left out like a lost
+                    // branch (as it was before the simulator caught it),
+                    // so the data say what a push at its node does.
+                    Ok(outcome) if outcome.report.hold == Hold::AtBase => {
+                        discarded.push(CAUGHT_AT_BASE);
+                        if discarded.len() >= config.max_attempts {
+                            return Err(CollectError::TooManyDiscards {
+                                split: split.name(),
+                                n,
+                                episode: e,
+                                attempts: discarded.len(),
+                                last: "the slot slid back to the branch's base fork".to_owned(),
+                            });
+                        }
+                    }
                     Ok(outcome) => {
                         progress();
                         let displacement = outcome

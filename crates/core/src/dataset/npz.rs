@@ -8,7 +8,7 @@
 //! | `push` | float64 | (E, 3) | gripper displacement T (m) |
 //! | `contact_node` | int64 | (E,) | contacted node j (≥ 1) |
 //! | `tree_index` | int64 | (E,) | row of the tree arrays below |
-//! | `hold` | uint8 | (E,) | 0: branch in the slot, 1: node held (fork catch / pinned) |
+//! | `hold` | uint8 | (E,) | 0: branch in the slot, 1: node held (fork catch / pinned), 2: the base fork held (slid back to it) |
 //! | `tree_seed` | uint64 | (T,) | generator seed of each tree |
 //! | `tree_positions` | float64 | (T, N, 3) | rest node positions (m) |
 //! | `parents` | int64 | (T, N) | parent of each node, −1 for the root |
@@ -86,6 +86,7 @@ pub fn write_size_file(data: &SizeData, path: &Path) -> Result<(), NpzError> {
         hold[k] = match ep.hold {
             Hold::OnAxis => 0,
             Hold::AtNode => 1,
+            Hold::AtBase => 2,
         };
     }
     let mut seeds = Array1::<u64>::zeros(t);
@@ -282,6 +283,7 @@ pub fn read_size<R: std::io::Read + std::io::Seek>(
         let hold = match hold[k] {
             0 => Hold::OnAxis,
             1 => Hold::AtNode,
+            2 => Hold::AtBase,
             other => return Err(content(format!("episode {k}: unknown hold {other}"))),
         };
         let final_positions: Vec<Point3<f64>> = (0..n)

@@ -128,11 +128,11 @@ impl Observed<'_> {
                 reason: e.kind().into(),
                 message: e.to_string(),
             })?;
-        if self.probe.contact == ContactModel::Slot && out.report.hold == Hold::AtNode {
+        if self.probe.contact == ContactModel::Slot && out.report.hold != Hold::OnAxis {
             return Err(Rejected {
                 probe: self.index,
                 reason: "hold_switched".into(),
-                message: "the slot slid along the branch to the fork and caught there: the hold switched, so the probe says little about stiffness and is left out".into(),
+                message: "the slot slid along the branch to a fork and caught there: the hold switched, so the probe says little about stiffness and is left out".into(),
             });
         }
         Ok(out)

@@ -11,6 +11,9 @@
 //!   When the branch would slide out of the slot past its node: at a fork
 //!   the slot catches on the child branches and from then on carries the
 //!   node itself to g ([`Hold::AtNode`]); at a leaf tip the branch is lost.
+//!   Slid back past the branch's base, the slot catches on the fork there
+//!   the same way and carries the fork node to g ([`Hold::AtBase`]); at
+//!   the trunk's foot, which nothing carries, the branch is lost.
 //! - [`ContactModel::Pinned`]: the contacted node itself is carried exactly
 //!   by T: P_m = p⁰_j + T. Three constraints.
 
@@ -53,6 +56,11 @@ pub enum Hold {
     OnAxis,
     /// The contacted node is at the gripper point (3 constraints).
     AtNode,
+    /// The slot slid back to the fork at the contacted branch's base and
+    /// caught there: the fork node is at the gripper point (3 constraints
+    /// on the path to that node; the contacted branch moves rigidly with
+    /// it).
+    AtBase,
 }
 
 /// One push's contact constraints.
@@ -110,7 +118,7 @@ impl Contact {
     pub fn rows(&self) -> usize {
         match self.hold {
             Hold::OnAxis => 2,
-            Hold::AtNode => 3,
+            Hold::AtNode | Hold::AtBase => 3,
         }
     }
 
@@ -137,7 +145,7 @@ impl Contact {
                     }
                 }
             }
-            Hold::AtNode => {
+            Hold::AtNode | Hold::AtBase => {
                 let tip = pose.points[m];
                 c.copy_from(&(tip - self.target));
                 for k in 0..m {
@@ -176,7 +184,7 @@ impl Contact {
                     .map(|(r, across)| q * across * lambda[r])
                     .sum()
             }
-            Hold::AtNode => -Vector3::new(lambda[0], lambda[1], lambda[2]),
+            Hold::AtNode | Hold::AtBase => -Vector3::new(lambda[0], lambda[1], lambda[2]),
         }
     }
 }

@@ -149,6 +149,37 @@ impl SimError {
     }
 }
 
+/// A slot that slid back past the contacted branch's base: the fork
+/// there stops it, as the child branches stop it at the tip, and from then
+/// on the gripper carries the fork node `base` to its point (the
+/// [`ContactModel::Pinned`] push of `base`, reported as [`Hold::AtBase`]).
+/// The branch is lost only at the trunk's foot, which nothing carries,
+/// and where the gripper's point is farther from the fork than any push.
+fn caught_at_base(
+    tree: &Tree,
+    base: usize,
+    contact: &Contact,
+    config: &SimConfig,
+    warm: Option<&[Vector3<f64>]>,
+    slide: f64,
+    length: f64,
+) -> Result<PushOutcome, SimError> {
+    let caught = Push {
+        node: base,
+        vector: contact.target - tree.position(base),
+    };
+    if caught.vector.norm() > MAX_PUSH_LENGTH {
+        return Err(SimError::LostBranch { slide, length });
+    }
+    let pinned = SimConfig {
+        contact: ContactModel::Pinned,
+        ..*config
+    };
+    let mut out = simulate_from(tree, &caught, &pinned, warm)?;
+    out.report.hold = Hold::AtBase;
+    Ok(out)
+}
+
 /// Solves one push.
 pub fn simulate(tree: &Tree, push: &Push, config: &SimConfig) -> Result<PushOutcome, SimError> {
     simulate_from(tree, push, config, None)
@@ -183,6 +214,7 @@ pub fn simulate_from(
         });
     }
 
+    let warm_rotations = warm;
     let chain = PathChain::new(tree, push.node);
     let contact = Contact::new(tree, push.node, &push.vector, config.contact);
     if contact.hold == Hold::AtNode {
@@ -221,6 +253,10 @@ pub fn simulate_from(
             let caught = contact.caught_at_node();
             check_reach(tree, &chain, &caught)?;
             solved = solve(&caught)?;
+        } else if slide < 0.0
+            && let Some(base) = tree.parent(push.node).filter(|&p| p != 0)
+        {
+            return caught_at_base(tree, base, &contact, config, warm_rotations, slide, length);
         } else if !(0.0..=length).contains(&slide) {
             return Err(SimError::LostBranch { slide, length });
         }

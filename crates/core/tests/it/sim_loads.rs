@@ -100,6 +100,7 @@ fn every_joint_balances_the_contact_force() {
                     tree.position(j) - tree.branch_direction(j).unwrap() * GRIP_OFFSET + push.vector
                 }
                 Hold::AtNode => out.final_positions[j],
+                Hold::AtBase => out.final_positions[tree.parent(j).unwrap()],
             };
             let mut on_path = vec![false; n];
             let mut k = j;

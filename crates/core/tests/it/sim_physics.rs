@@ -486,4 +486,36 @@ fn invalid_pushes_are_typed_errors() {
     )
     .unwrap_err();
     assert!(matches!(err, SimError::LostBranch { .. }), "{err}");
+    // Pushed back along the branch past its base, the slot catches on the
+    // fork there: the gripper carries node 2 to its point, and the pushed
+    // branch (node 3) moves rigidly with it.
+    let back = Vector3::new(0.02, 0.0, -0.22);
+    let out = simulate(
+        &tree,
+        &Push {
+            node: 3,
+            vector: back,
+        },
+        &slot(),
+    )
+    .unwrap();
+    assert_eq!(out.report.hold, Hold::AtBase);
+    let grip = Point3::new(0.0, 0.0, 0.6 - GRIP_OFFSET) + back;
+    assert!((out.final_positions[2] - grip).norm() < 1e-9);
+    assert_eq!(out.joint_rotations[3], Vector3::zeros());
+    assert!(out.report.kkt_residual < 1e-8);
+    // At the trunk's foot nothing carries the fork: the branch is lost.
+    let err = simulate(
+        &single,
+        &Push {
+            node: 1,
+            vector: back,
+        },
+        &slot(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, SimError::LostBranch { slide, .. } if slide < 0.0),
+        "{err}"
+    );
 }

@@ -123,6 +123,21 @@ fn simulate_answers_with_the_simulators_ground_truth() {
     let (status, body) = server.json("POST", "/v1/simulate", &pinned);
     assert_eq!(status, 200, "{body}");
     assert_eq!(body["solver"]["hold"], "at_node");
+    // Pushed back along its branch past the base, the slot catches on the
+    // fork at node 2 and carries it to the gripper's point.
+    let chain = json!({
+        "positions": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.4], [0.0, 0.0, 0.8], [0.0, 0.0, 1.2]],
+        "parents": [null, 0, 1, 2],
+        "radius": [null, 0.02, 0.012, 0.006]
+    });
+    let back = json!({ "tree": chain, "contact_node": 3, "push": [0.02, 0.0, -0.42] });
+    let (status, body) = server.json("POST", "/v1/simulate", &back);
+    assert_eq!(status, 200, "{body}");
+    assert_eq!(body["solver"]["hold"], "at_base");
+    for (k, g) in [0.02, 0.0, 1.19 - 0.42].iter().enumerate() {
+        let at = body["final_positions"][2][k].as_f64().unwrap();
+        assert!((at - g).abs() < 1e-9, "{body}");
+    }
 }
 
 fn expect_error(server: &Server, body: &Value, status: u16, code: &str) -> Value {

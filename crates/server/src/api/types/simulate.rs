@@ -126,14 +126,17 @@ impl From<PeakStress> for PeakStressJson {
     }
 }
 
-/// What the gripper ended up holding: the branch in its slot (`on_axis`)
-/// or the node itself (`at_node`).
+/// What the gripper ended up holding: the branch in its slot (`on_axis`),
+/// the node itself (`at_node`: the slot slid to the fork at the tip, or
+/// the pinned contact) or the fork at the branch's base (`at_base`: the
+/// slot slid back to it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 #[schema(as = Hold)]
 pub enum HoldJson {
     OnAxis,
     AtNode,
+    AtBase,
 }
 
 impl From<Hold> for HoldJson {
@@ -141,6 +144,7 @@ impl From<Hold> for HoldJson {
         match h {
             Hold::OnAxis => HoldJson::OnAxis,
             Hold::AtNode => HoldJson::AtNode,
+            Hold::AtBase => HoldJson::AtBase,
         }
     }
 }
