@@ -86,7 +86,9 @@ pub const EXTRACTED_MARGIN: f64 = 0.01;
 /// Planning on an extracted tree keeps this share of the stress limit in
 /// reserve: σ = 4M/(πr³) goes with the cube of the radius, which the
 /// extraction knows to about 0.16 mm (median, 3 views, 2 mm noise) on
-/// twigs of 5 mm, so 3 Δr/r ≈ 10 %.
+/// twigs of 5 mm, so 3 Δr/r ≈ 10 %. The guard is read under the same
+/// reserved limits: the stress per newton it converts the stress limit
+/// into a force with is the extracted tree's, off by as much.
 pub const EXTRACTED_STRESS_RESERVE: f64 = 0.1;
 
 /// `tasks_per_tree` `clear` tasks per tree: planned on the extracted tree
@@ -152,7 +154,11 @@ pub fn end_to_end(
                     .and_then(|s| held_at(tree, &found.position(s.push.node)));
                 let branch_there = held.is_some();
                 let carried = planned.as_ref().zip(held).and_then(|(s, (held, node))| {
-                    let guard = limits.guard_force(found, &s.push)?;
+                    // The guard of the limits the push was planned
+                    // under: the reserve covers the stress per newton
+                    // the extracted radii get wrong, as it covers the
+                    // plan's stress.
+                    let guard = reserved.guard_force(found, &s.push)?;
                     let push = Push {
                         node,
                         vector: s.push.vector,
