@@ -261,4 +261,42 @@ fn a_scan_tells_from_points_where_it_was_seen_from() {
     assert!(said.contains("behind what the sensor saw"), "{said}");
     // A viewpoint with a negative coordinate in the next argument's form.
     let (_, _) = recall(&["--viewpoint", "-1.5,0,0.8"]);
+    // The same cloud as a PCD file whose header records the viewpoint: read
+    // from it on request, the same tree.
+    let at = viewpoints[0]
+        .strip_prefix("--viewpoint=")
+        .unwrap()
+        .replace(',', " ");
+    let points = treemanip::scan::io::read_path(&cloud, 10_000_000)
+        .unwrap()
+        .points;
+    let mut pcd = format!(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\nVIEWPOINT {at} 1 0 0 0\nPOINTS {n}\nDATA ascii\n",
+        n = points.len()
+    );
+    for p in &points {
+        pcd.push_str(&format!("{} {} {}\n", p.x, p.y, p.z));
+    }
+    let recorded = out.join("cloud.pcd");
+    std::fs::write(&recorded, pcd).unwrap();
+    let read_from = |file: &std::path::Path, how: &str| {
+        let run = treemanip(&["trees", "from-points", file.to_str().unwrap(), how]);
+        let said = String::from_utf8_lossy(&run.stderr).to_string();
+        let tree = run
+            .status
+            .success()
+            .then(|| serde_json::from_slice::<Value>(&run.stdout).unwrap()["tree"].clone());
+        (tree, said)
+    };
+    let (recorded_tree, said) = read_from(&recorded, "--viewpoint-from-file");
+    assert!(said.contains("behind what the sensor saw"), "{said}");
+    let (told_tree, said) = read_from(&recorded, viewpoints[0]);
+    assert!(told_tree.is_some(), "{said}");
+    assert_eq!(recorded_tree, told_tree);
+    // A PLY file records none: a clear error.
+    let (none, said) = read_from(&cloud, "--viewpoint-from-file");
+    assert!(
+        none.is_none() && said.contains("records no viewpoint"),
+        "{said}"
+    );
 }

@@ -128,11 +128,27 @@ pub struct FromPointsArgs {
     /// are then bridged as gaps under leaves are.
     #[arg(long = "viewpoint", allow_hyphen_values = true)]
     viewpoints: Vec<String>,
+    /// Also the viewpoint the file records (PCD's `VIEWPOINT`): only when
+    /// it is where the sensor stood in the points' frame (a cloud moved
+    /// into a world frame often keeps the default `0 0 0`; one among the
+    /// points is refused).
+    #[arg(long)]
+    viewpoint_from_file: bool,
 }
 
 pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
     let start = std::time::Instant::now();
     let cloud = io::read_path(&args.file, args.max_points)?;
+    let mut viewpoints = args.viewpoints;
+    if args.viewpoint_from_file {
+        let v = io::recorded_viewpoint(&args.file)?.ok_or_else(|| {
+            anyhow::anyhow!(
+                "{} records no viewpoint (only PCD files do); give --viewpoint x,y,z",
+                args.file.display()
+            )
+        })?;
+        viewpoints.push(format!("{},{},{}", v.x, v.y, v.z));
+    }
     let read = start.elapsed();
     // The options as the endpoint's query reads them: one parser.
     let query = FromPointsQuery {
@@ -150,7 +166,7 @@ pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
                 |_| anyhow::anyhow!("--sensor must be unknown or camera, not {}", args.sensor),
             )?,
         ),
-        viewpoints: (!args.viewpoints.is_empty()).then(|| args.viewpoints.join(",")),
+        viewpoints: (!viewpoints.is_empty()).then(|| viewpoints.join(",")),
     };
     let params = ExtractParams {
         max_points: args.max_points,

@@ -10,8 +10,21 @@ pub mod xyz;
 
 use std::path::Path;
 
+use nalgebra::Point3;
+
 use crate::scan::cloud::PointCloud;
 pub use error::FormatError;
+
+/// Where the file says its sensor stood, for formats that record it (PCD's
+/// `VIEWPOINT`); `None` for the others.
+pub fn recorded_viewpoint(path: &Path) -> Result<Option<Point3<f64>>, FormatError> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    if ext.eq_ignore_ascii_case("pcd") {
+        pcd::recorded_viewpoint(path).map(Some)
+    } else {
+        Ok(None)
+    }
+}
 
 /// Reads a cloud, choosing the format by the file's extension.
 pub fn read_path(path: &Path, max_points: usize) -> Result<PointCloud, FormatError> {

@@ -1,7 +1,9 @@
 //! PCD (the Point Cloud Library's format, through pcd-rs): ASCII, binary
 //! or compressed, the `x`, `y`, `z` fields of any numeric type. The point
 //! count in the header is checked against the limit before any point is
-//! read.
+//! read. The header's `VIEWPOINT` (where the sensor stood) is read only on
+//! request ([`recorded_viewpoint`]): a cloud moved into a world frame often
+//! keeps its default `0 0 0`.
 
 use std::path::Path;
 
@@ -46,6 +48,17 @@ pub fn read(path: &Path, max_points: usize) -> Result<PointCloud, FormatError> {
     Ok(PointCloud::new(points))
 }
 
+/// Where the file's `VIEWPOINT` says the sensor stood (its translation;
+/// the orientation does not matter to an extraction).
+pub fn recorded_viewpoint(path: &Path) -> Result<Point3<f64>, FormatError> {
+    let reader = DynReader::open(path).map_err(|e| FormatError::Parse {
+        format: FORMAT,
+        reason: e.to_string(),
+    })?;
+    let v = &reader.meta().viewpoint;
+    Ok(Point3::new(v.tx, v.ty, v.tz))
+}
+
 fn first(field: &Field) -> Option<f64> {
     Some(match field {
         Field::I8(v) => *v.first()? as f64,
@@ -71,9 +84,13 @@ mod tests {
         let path = scratch.path().join("cloud.pcd");
         std::fs::write(
             &path,
-            "# .PCD v0.7\nVERSION 0.7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA ascii\n7 0.5 1 2\n8 3 4 5.25\n",
+            "# .PCD v0.7\nVERSION 0.7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT -1.5 0.25 0.8 1 0 0 0\nPOINTS 2\nDATA ascii\n7 0.5 1 2\n8 3 4 5.25\n",
         )
         .unwrap();
+        assert_eq!(
+            recorded_viewpoint(&path).unwrap(),
+            Point3::new(-1.5, 0.25, 0.8)
+        );
         let cloud = read(&path, 10).unwrap();
         assert_eq!(
             cloud.points,
