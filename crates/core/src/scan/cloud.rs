@@ -75,8 +75,12 @@ pub enum CloudError {
         distance: f64,
         min: f64,
     },
-    #[error("{0}")]
-    BadParameter(String),
+    /// An option out of its range; `field` names it as the request does.
+    #[error("{message}")]
+    BadParameter {
+        field: &'static str,
+        message: String,
+    },
     #[error(
         "no tree-like component: the largest connected part has {largest} points spanning {extent:.3} m; a tree needs a connected part at least {min_extent:.3} m tall"
     )]

@@ -16,7 +16,6 @@ use crate::api::types::{
     CropJson, DroppedJson, FoliageJson, FromPointsQuery, FromPointsRequest, FromPointsResponse,
     SensorJson, TreeJson,
 };
-use treemanip_core::scan::extract::MAX_VIEWPOINTS;
 use treemanip_core::scan::io::FormatError;
 use treemanip_core::scan::{CloudError, CropBox, ExtractParams, Extraction, PointCloud, extract};
 
@@ -240,11 +239,13 @@ impl FromPointsQuery {
             .viewpoints
             .as_deref()
             .map(|s| {
+                // Triples here; how many, and their values, the
+                // extraction's own checks judge.
                 let n = s.split(',').count();
-                if n % 3 != 0 || n > 3 * MAX_VIEWPOINTS {
-                    return Err(ApiError::invalid_argument(format!(
-                        "`viewpoints` must be x,y,z for each of at most {MAX_VIEWPOINTS} views, comma-separated"
-                    ))
+                if n % 3 != 0 {
+                    return Err(ApiError::invalid_argument(
+                        "`viewpoints` must be x,y,z for each view, comma-separated",
+                    )
                     .with_details(json!({ "field": "viewpoints" })));
                 }
                 Ok(numbers("viewpoints", s, n)?
@@ -312,7 +313,7 @@ pub fn cloud_error(e: CloudError) -> ApiError {
         CloudError::ViewpointAmongPoints { .. } => "viewpoints",
         CloudError::TooFewInCrop { .. } => "crop",
         CloudError::LengthMismatch { field, .. } => field,
-        CloudError::BadParameter(_) => "options",
+        CloudError::BadParameter { field, .. } => field,
         _ => "points",
     };
     ApiError::invalid_argument(e.to_string()).with_details(json!({ "field": field }))

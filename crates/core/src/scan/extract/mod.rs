@@ -116,25 +116,34 @@ impl Default for ExtractParams {
 
 impl ExtractParams {
     fn validate(&self) -> Result<Vector3<f64>, CloudError> {
-        let bad = |s: &str| Err(CloudError::BadParameter(s.to_owned()));
+        let bad = |field, message: &str| {
+            Err(CloudError::BadParameter {
+                field,
+                message: message.to_owned(),
+            })
+        };
         if !(self.spacing.is_finite() && (0.03..=1.0).contains(&self.spacing)) {
-            return bad("spacing must be between 0.03 and 1 m");
+            return bad("spacing", "spacing must be between 0.03 and 1 m");
         }
         if !(self.voxel.is_finite() && (0.001..=0.05).contains(&self.voxel)) {
-            return bad("voxel must be between 0.001 and 0.05 m");
+            return bad("voxel", "voxel must be between 0.001 and 0.05 m");
         }
         if !(self.max_gap.is_finite() && (0.0..=0.5).contains(&self.max_gap)) {
-            return bad("max_gap must be between 0 and 0.5 m");
+            return bad("max_gap", "max_gap must be between 0 and 0.5 m");
         }
         if let Some(root) = self.root
             && !root.iter().all(|c| c.is_finite())
         {
-            return bad("root must be finite");
+            return bad("root", "root must be finite");
         }
         if self.viewpoints.len() > MAX_VIEWPOINTS {
-            return Err(CloudError::BadParameter(format!(
-                "at most {MAX_VIEWPOINTS} viewpoints"
-            )));
+            return bad(
+                "viewpoints",
+                &format!(
+                    "at most {MAX_VIEWPOINTS} viewpoints, not {}",
+                    self.viewpoints.len()
+                ),
+            );
         }
         if !self
             .viewpoints
@@ -142,13 +151,13 @@ impl ExtractParams {
             .flat_map(|v| v.iter())
             .all(|c| c.is_finite())
         {
-            return bad("viewpoints must be finite");
+            return bad("viewpoints", "viewpoints must be finite");
         }
         if let Some(crop) = self.crop
             && (!(crop.min.iter().chain(crop.max.iter())).all(|c| c.is_finite())
                 || (0..3).any(|i| crop.min[i] > crop.max[i]))
         {
-            return bad("crop must be finite with min <= max on every axis");
+            return bad("crop", "crop must be finite with min <= max on every axis");
         }
         let norm = self.up.norm();
         if !(norm.is_finite() && norm > 1e-9) {

@@ -283,7 +283,16 @@ fn a_twig_hidden_behind_what_the_sensor_saw_is_bridged() {
             ..ExtractParams::default()
         },
     );
-    assert!(matches!(bad, Err(CloudError::BadParameter(_))), "{bad:?}");
+    assert!(
+        matches!(
+            bad,
+            Err(CloudError::BadParameter {
+                field: "viewpoints",
+                ..
+            })
+        ),
+        "{bad:?}"
+    );
     // The trunk's foot: a world frame's origin sent as a camera's.
     let among = extract(
         &cloud,
