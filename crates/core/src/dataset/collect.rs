@@ -180,23 +180,20 @@ pub fn collect_size(
             let mut discarded = Vec::new();
             loop {
                 let push = config.pushes.sample(tree, &mut rng);
-                match simulate(tree, &push, &sim) {
-                    // The slot slid back to the base fork: the push moved
-                    // that node, not the one drawn. Left out like a lost
-                    // branch (as it was before the simulator caught it),
-                    // so the data say what a push at its node does.
-                    Ok(outcome) if outcome.report.hold == Hold::AtBase => {
-                        discarded.push(CAUGHT_AT_BASE);
-                        if discarded.len() >= config.max_attempts {
-                            return Err(CollectError::TooManyDiscards {
-                                split: split.name(),
-                                n,
-                                episode: e,
-                                attempts: discarded.len(),
-                                last: "the slot slid back to the branch's base fork".to_owned(),
-                            });
+                // The slot slid back to the base fork: the push moved
+                // that node, not the one drawn. Left out like a lost
+                // branch (as it was before the simulator caught it), so
+                // the data say what a push at its node does.
+                let outcome = simulate(tree, &push, &sim)
+                    .map_err(|err| (err.kind(), Some(err)))
+                    .and_then(|outcome| {
+                        if outcome.report.hold == Hold::AtBase {
+                            Err((CAUGHT_AT_BASE, None))
+                        } else {
+                            Ok(outcome)
                         }
-                    }
+                    });
+                match outcome {
                     Ok(outcome) => {
                         progress();
                         let displacement = outcome
@@ -218,15 +215,18 @@ pub fn collect_size(
                             displacement,
                         });
                     }
-                    Err(err) => {
-                        discarded.push(err.kind());
+                    Err((kind, err)) => {
+                        discarded.push(kind);
                         if discarded.len() >= config.max_attempts {
                             return Err(CollectError::TooManyDiscards {
                                 split: split.name(),
                                 n,
                                 episode: e,
                                 attempts: discarded.len(),
-                                last: err.to_string(),
+                                last: err.map_or_else(
+                                    || "the slot slid back to the branch's base fork".to_owned(),
+                                    |e| e.to_string(),
+                                ),
                             });
                         }
                     }

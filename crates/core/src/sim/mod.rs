@@ -214,14 +214,13 @@ pub fn simulate_from(
         });
     }
 
-    let warm_rotations = warm;
     let chain = PathChain::new(tree, push.node);
     let contact = Contact::new(tree, push.node, &push.vector, config.contact);
     if contact.hold == Hold::AtNode {
         check_reach(tree, &chain, &contact)?;
     }
     // The warm start in the solver's coordinates x = √K θ.
-    let warm = warm.filter(|w| w.len() == n).map(|w| {
+    let warm_x = warm.filter(|w| w.len() == n).map(|w| {
         DVector::from_iterator(
             3 * chain.len(),
             chain
@@ -237,7 +236,8 @@ pub fn simulate_from(
         )
     });
     let solve = |contact: &Contact| {
-        warm.as_ref()
+        warm_x
+            .as_ref()
             .and_then(|x| solve_contact_from(&chain, contact, &config.solver, x.clone()))
             .map_or_else(
                 || solve_contact(&chain, contact, &push.vector, &config.solver),
@@ -256,7 +256,7 @@ pub fn simulate_from(
         } else if slide < 0.0
             && let Some(base) = tree.parent(push.node).filter(|&p| p != 0)
         {
-            return caught_at_base(tree, base, &contact, config, warm_rotations, slide, length);
+            return caught_at_base(tree, base, &contact, config, warm, slide, length);
         } else if !(0.0..=length).contains(&slide) {
             return Err(SimError::LostBranch { slide, length });
         }
