@@ -299,4 +299,10 @@ fn a_scan_tells_from_points_where_it_was_seen_from() {
         none.is_none() && said.contains("records no viewpoint"),
         "{said}"
     );
+    // Told a laser made it: the silhouettes; a beam without a laser is
+    // named.
+    let (_, said) = recall(&["--sensor", "laser", "--beam-radius", "0.001"]);
+    assert!(said.contains("silhouettes"), "{said}");
+    let (none, said) = read_from(&cloud, "--beam-radius=0.001");
+    assert!(none.is_none() && said.contains("beam_radius"), "{said}");
 }

@@ -117,12 +117,17 @@ pub struct FromPointsArgs {
     /// else by shape when the cloud looks leafy), `shape` or `off`.
     #[arg(long, default_value = "auto")]
     foliage: String,
-    /// What made the cloud: `unknown`, or `camera` (returns on the surface
+    /// What made the cloud: `unknown`; `camera` (returns on the surface
     /// facing it: a one-sided cloud's axes are moved back from the near
     /// surface; not for a laser scanner whose beam is wider than the
-    /// twigs).
+    /// twigs); or `laser` with its `--beam-radius` (a one-sided cloud's
+    /// radii and axes from the silhouettes less the beam's spread).
     #[arg(long, default_value = "unknown")]
     sensor: String,
+    /// With `--sensor laser`: how far past a branch's edge its pulse still
+    /// returns (m): about half the beam's footprint at the tree.
+    #[arg(long)]
+    beam_radius: Option<f64>,
     /// Where the sensor stood, `x,y,z` (m), once per view (`0,0,0` for a
     /// camera's own cloud, in its frame): gaps hidden behind what it saw
     /// are then bridged as gaps under leaves are.
@@ -163,9 +168,15 @@ pub fn from_points_cmd(args: FromPointsArgs) -> anyhow::Result<()> {
         ),
         sensor: Some(
             serde_json::from_value(serde_json::Value::String(args.sensor.clone())).map_err(
-                |_| anyhow::anyhow!("--sensor must be unknown or camera, not {}", args.sensor),
+                |_| {
+                    anyhow::anyhow!(
+                        "--sensor must be unknown, camera or laser, not {}",
+                        args.sensor
+                    )
+                },
             )?,
         ),
+        beam_radius: args.beam_radius,
         viewpoints: (!viewpoints.is_empty()).then(|| viewpoints.join(",")),
     };
     let params = ExtractParams {

@@ -13,6 +13,14 @@ use crate::scan::{PointCloud, Sensor, Skeleton};
 /// The range noise σ (m) `scripts/scan-independent` scans with.
 pub const INDEPENDENT_NOISE: f64 = 0.002;
 
+/// How far past an edge the beam `scripts/scan-independent` scans with
+/// still returns (m), from its published geometry, not fitted: a RIEGL
+/// VZ-400i's footprint at 1.5 m is 7 mm (exit) + 1.5 m × 0.35 mrad = 7.5 mm
+/// across, sampled by sylva-rs with 7 sub-beams on a sunflower pattern
+/// whose outermost reach across a branch is 0.75 and 0.79 of the
+/// footprint's radius on either side: 0.77 × 3.76 mm.
+pub const INDEPENDENT_BEAM_RADIUS: f64 = 0.0029;
+
 /// The most points one independent cloud may have.
 const MAX_POINTS: usize = 5_000_000;
 
@@ -82,10 +90,17 @@ pub fn independent_rows(dir: &Path, peers: &[Peer]) -> anyhow::Result<Vec<Condit
     let mut out = Vec::new();
     for v in views {
         let these: Vec<&Case> = cases.iter().filter(|c| c.views == v).collect();
-        // One view also as a camera's cloud: what `sensor: camera` does to
-        // a laser scanner's (the reason it is not the default).
+        // One view also as a camera's cloud, what `sensor: camera` does to
+        // a laser scanner's (the reason it is not the default), and told
+        // the scanner's beam.
         let sensors: &[Sensor] = if v == 1 {
-            &[Sensor::Unknown, Sensor::Camera]
+            &[
+                Sensor::Unknown,
+                Sensor::Camera,
+                Sensor::Laser {
+                    beam_radius: INDEPENDENT_BEAM_RADIUS,
+                },
+            ]
         } else {
             &[Sensor::Unknown]
         };

@@ -41,10 +41,11 @@ impl Condition {
                 String::new()
             },
             if self.colour { ", RGB" } else { "" },
-            if self.sensor == Sensor::Camera {
-                ", `sensor: camera`"
-            } else {
-                ""
+            match self.sensor {
+                Sensor::Unknown => String::new(),
+                Sensor::Camera => ", `sensor: camera`".to_owned(),
+                Sensor::Laser { beam_radius } =>
+                    format!(", `sensor: laser`, beam radius {:.1} mm", beam_radius * 1e3),
             },
             if self.placed {
                 ""
@@ -240,10 +241,10 @@ pub fn cloud_stem(condition: &Condition, index: usize) -> String {
         condition.noise * 1e3,
         condition.leaves,
         if condition.colour { "c" } else { "" },
-        if condition.sensor == Sensor::Camera {
-            "k"
-        } else {
-            ""
+        match condition.sensor {
+            Sensor::Unknown => "",
+            Sensor::Camera => "k",
+            Sensor::Laser { .. } => "b",
         }
     )
 }

@@ -6,7 +6,7 @@
 //! - [`voxel`], [`neighbours`]: averaging cubes, the neighbourhood graph,
 //!   components and shortest paths;
 //! - [`circle_fit`], [`levels`], [`fine`], [`base`], [`forks`],
-//!   [`viewpoint`], [`simplify`] with [`corner`]: the steps of [`extract::extract`] (its module
+//!   [`viewpoint`], [`silhouette`], [`simplify`] with [`corner`]: the steps of [`extract::extract`] (its module
 //!   documentation lists them in order);
 //! - [`skeleton`]: a tree as geometry (positions, parents, radii);
 //! - [`scanner`]: what a camera at K viewpoints would see of a tree;
@@ -30,6 +30,7 @@ pub mod neighbours;
 pub mod scanner;
 pub mod score;
 pub mod shadow;
+pub mod silhouette;
 pub mod simplify;
 pub mod skeleton;
 pub mod viewpoint;

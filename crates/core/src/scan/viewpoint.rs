@@ -30,7 +30,7 @@ use nalgebra::{Matrix3, Point3, Vector3};
 use crate::scan::skeleton::Skeleton;
 
 /// What the extraction may assume of the sensor's returns.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Sensor {
     /// Nothing: the skeleton stands where the points put it, wherever the
@@ -41,6 +41,12 @@ pub enum Sensor {
     /// range): returns on the surface facing it. A cloud seen from one
     /// side has its branch axes moved back from the near surface.
     Camera,
+    /// A laser scanner whose beam spreads `beam_radius` (m) past a
+    /// branch's edge: returns come from a pulse whose footprint only
+    /// grazes the branch. A cloud seen from one side has its radii and
+    /// axes from the silhouettes, less that spread
+    /// ([`crate::scan::silhouette`]).
+    Laser { beam_radius: f64 },
 }
 
 /// How far (a share of its radius) a node of a camera's one-sided cloud

@@ -14,6 +14,40 @@ pub struct Voxels {
     pub of_point: Vec<usize>,
 }
 
+impl Voxels {
+    /// Each cube's input points, grouped by cube.
+    pub fn members(&self) -> CubeMembers {
+        let mut start = vec![0usize; self.centres.len() + 1];
+        for &c in &self.of_point {
+            start[c + 1] += 1;
+        }
+        for c in 0..self.centres.len() {
+            start[c + 1] += start[c];
+        }
+        let mut next = start.clone();
+        let mut order = vec![0usize; self.of_point.len()];
+        for (i, &c) in self.of_point.iter().enumerate() {
+            order[next[c]] = i;
+            next[c] += 1;
+        }
+        CubeMembers { start, order }
+    }
+}
+
+/// The input points of every cube ([`Voxels::members`]).
+#[derive(Debug, Clone, Default)]
+pub struct CubeMembers {
+    start: Vec<usize>,
+    order: Vec<usize>,
+}
+
+impl CubeMembers {
+    /// The input points (indices) cube `c` averages.
+    pub fn of(&self, c: usize) -> &[usize] {
+        &self.order[self.start[c]..self.start[c + 1]]
+    }
+}
+
 pub fn voxelize(points: &[Point3<f64>], voxel: f64) -> Voxels {
     let mut slot: HashMap<[i64; 3], usize> = HashMap::with_capacity(points.len() / 4);
     let mut sums: Vec<Vector3<f64>> = Vec::new();
@@ -60,5 +94,8 @@ mod tests {
         assert_eq!(v.counts, vec![2, 1]);
         assert_eq!(v.of_point, vec![0, 0, 1]);
         assert!((v.centres[0] - Point3::new(0.002, 0.001, 0.001)).norm() < 1e-12);
+        let members = v.members();
+        assert_eq!(members.of(0), &[0, 1]);
+        assert_eq!(members.of(1), &[2]);
     }
 }

@@ -17,7 +17,9 @@ use crate::api::types::{
     SensorJson, TreeJson,
 };
 use treemanip_core::scan::io::FormatError;
-use treemanip_core::scan::{CloudError, CropBox, ExtractParams, Extraction, PointCloud, extract};
+use treemanip_core::scan::{
+    CloudError, CropBox, ExtractParams, Extraction, PointCloud, Sensor, extract,
+};
 
 /// Media types read as PLY.
 pub const PLY_MEDIA_TYPES: [&str; 2] = ["application/x-ply", "application/octet-stream"];
@@ -142,7 +144,7 @@ impl FromPointsRequest {
             self.spacing,
             self.crop,
             self.foliage,
-            self.sensor,
+            sensor(self.sensor, self.beam_radius)?,
             self.viewpoints.as_deref(),
         )?;
         Ok((
@@ -156,6 +158,22 @@ impl FromPointsRequest {
     }
 }
 
+/// What made the cloud, from `sensor` and the laser's `beam_radius` (its
+/// range is the extraction's own check).
+fn sensor(sensor: Option<SensorJson>, beam_radius: Option<f64>) -> Result<Sensor, ApiError> {
+    match (sensor.unwrap_or_default(), beam_radius) {
+        (SensorJson::Laser, beam_radius) => Ok(Sensor::Laser {
+            beam_radius: beam_radius.unwrap_or(0.0),
+        }),
+        (_, Some(_)) => Err(ApiError::invalid_field(
+            "beam_radius",
+            "beam_radius is a laser's: send it with \"sensor\": \"laser\"",
+        )),
+        (SensorJson::Unknown, None) => Ok(Sensor::Unknown),
+        (SensorJson::Camera, None) => Ok(Sensor::Camera),
+    }
+}
+
 /// The extraction's options from the wire's (JSON body or query).
 fn params(
     root: Option<&[f64]>,
@@ -163,7 +181,7 @@ fn params(
     spacing: Option<f64>,
     crop: Option<CropJson>,
     foliage: Option<FoliageJson>,
-    sensor: Option<SensorJson>,
+    sensor: Sensor,
     viewpoints: Option<&[Vec<f64>]>,
 ) -> Result<ExtractParams, ApiError> {
     let defaults = ExtractParams::default();
@@ -181,7 +199,7 @@ fn params(
             max: Point3::from(c.max),
         }),
         foliage: foliage.unwrap_or_default().into(),
-        sensor: sensor.unwrap_or_default().into(),
+        sensor,
         viewpoints: viewpoints
             .unwrap_or_default()
             .iter()
@@ -260,7 +278,7 @@ impl FromPointsQuery {
             self.spacing,
             crop,
             self.foliage,
-            self.sensor,
+            sensor(self.sensor, self.beam_radius)?,
             viewpoints.as_deref(),
         )
     }

@@ -368,9 +368,53 @@ fn a_camera_cloud_seen_from_one_side_has_its_axes_moved_back() {
         bad["error"]["message"]
             .as_str()
             .unwrap()
-            .contains("unknown variant `lidar`, expected `unknown` or `camera`"),
+            .contains("unknown variant `lidar`, expected one of `unknown`, `camera`, `laser`"),
         "{bad}"
     );
+    // A laser with its beam: radii and axes from the silhouettes, the same
+    // tree from JSON and from the query; a beam without a laser, or wider
+    // than the extraction takes, is named.
+    let (status, laser) = server.json(
+        "POST",
+        "/v1/trees/from-points",
+        &json!({ "points": points, "sensor": "laser", "beam_radius": 0.001 }),
+    );
+    assert_eq!(status, 200, "{laser}");
+    assert!(says(&laser, "silhouettes"), "{}", laser["warnings"]);
+    assert_ne!(laser["tree"], plain["tree"]);
+    let (status, laser_query) = server.send(
+        "POST",
+        "/v1/trees/from-points?sensor=laser&beam_radius=0.001",
+        "application/x-ply",
+        &ply_bytes(&cloud),
+    );
+    assert_eq!(status, 200, "{laser_query}");
+    assert_eq!(laser_query["tree"], laser["tree"]);
+    for (body, says_what) in [
+        (
+            json!({ "points": points, "sensor": "camera", "beam_radius": 0.001 }),
+            "a laser's",
+        ),
+        (
+            json!({ "points": points, "beam_radius": 0.001 }),
+            "a laser's",
+        ),
+        (
+            json!({ "points": points, "sensor": "laser", "beam_radius": 0.2 }),
+            "between 0 and 0.05 m",
+        ),
+    ] {
+        let (status, bad) = server.json("POST", "/v1/trees/from-points", &body);
+        assert_eq!(status, 422, "{bad}");
+        assert_eq!(bad["error"]["details"]["field"], "beam_radius", "{bad}");
+        assert!(
+            bad["error"]["message"]
+                .as_str()
+                .unwrap()
+                .contains(says_what),
+            "{bad}"
+        );
+    }
 }
 
 /// A leafy cloud from one camera: told where the camera stood (`viewpoints`

@@ -21,151 +21,39 @@
 //!    three level sets; each piece's centre and radius come from a circle fitted
 //!    across the branch, with the parent's radius where a branch is seen
 //!    from one side only; a cloud seen from one side says so, and with
-//!    `sensor` a camera its axes move back ([`crate::scan::viewpoint`]).
+//!    `sensor` a camera its axes move back ([`crate::scan::viewpoint`]), a
+//!    laser's radii and axes come from the silhouettes less the beam's
+//!    spread ([`crate::scan::silhouette`]).
 //! 6. [`crate::scan::simplify`] keeps a joint at every branch point and
 //!    along branches at most `spacing` apart: the granularity the models
 //!    and the simulator expect.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Point3;
 use petgraph::unionfind::UnionFind;
 
 use crate::scan::bridge::{COVERED_MAX_GAP, Cover, Covered, MIN_PART_VOXELS, bridges};
-use crate::scan::cloud::{CloudError, CropBox, PointCloud, check_spread};
-use crate::scan::fine::{FineSkeleton, fine_skeleton};
+use crate::scan::cloud::{CloudError, PointCloud, check_spread};
+use crate::scan::fine::{FineSkeleton, RawPoints, fine_skeleton};
 use crate::scan::foliage::{FoliageClassifier, LEAFY_SHARE, call_foliage, is_foliage};
 use crate::scan::levels::Geodesic;
 use crate::scan::neighbours::{Graph, PointIndex, part_distance};
 use crate::scan::shadow::{Shadows, check_viewpoints};
 use crate::scan::simplify::simplify;
 use crate::scan::skeleton::Skeleton;
-use crate::scan::viewpoint::Sensor;
 use crate::scan::voxel::voxelize;
 
-/// The returned nodes' default spacing (m): the median branch length of
-/// the paper's generated trees (10-30 nodes, 0.6-1.7 m tall; 420 trees of
-/// the generator, quartiles 0.13 and 0.22 m).
-pub const DEFAULT_SPACING: f64 = 0.18;
-/// Default largest number of points in one cloud.
-pub const DEFAULT_MAX_POINTS: usize = 2_000_000;
+mod params;
+pub use params::{
+    DEFAULT_MAX_POINTS, DEFAULT_SPACING, ExtractParams, FoliageFilter, MAX_BEAM_RADIUS,
+    MAX_VIEWPOINTS,
+};
+
 /// A cloud needs at least this many points (after cropping).
 pub const MIN_POINTS: usize = 50;
 /// A given root may be at most this far (m) from the nearest point.
 pub const ROOT_TOLERANCE: f64 = 0.25;
 /// The smallest tree (m, along `up`) the extraction looks for.
 pub const MIN_TREE_HEIGHT: f64 = 0.1;
-
-/// How to read a cloud. Lengths in metres.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ExtractParams {
-    /// Largest distance between consecutive joints along a branch.
-    pub spacing: f64,
-    /// The trunk's base; by default the bottom of the tallest large
-    /// connected part.
-    pub root: Option<Point3<f64>>,
-    /// Which way is up (any length).
-    pub up: Vector3<f64>,
-    pub crop: Option<CropBox>,
-    pub max_points: usize,
-    /// Edge of the averaging cubes.
-    pub voxel: f64,
-    /// Largest gap bridged between a part and the tree.
-    pub max_gap: f64,
-    /// How leaves are found and dropped.
-    pub foliage: FoliageFilter,
-    /// What the returns may be assumed to be: with
-    /// [`Sensor::Camera`], a cloud seen from one side has its branch axes
-    /// moved back from the near surface.
-    pub sensor: Sensor,
-    /// Where the sensor stood for each view (m), when known: a gap in a
-    /// branch's points hidden behind what it saw is then bridged as one
-    /// under leaves is ([`crate::scan::shadow`]).
-    pub viewpoints: Vec<Point3<f64>>,
-}
-
-/// How the extraction finds leaves.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum FoliageFilter {
-    /// By colour when the cloud has colours; without, by shape
-    /// ([`crate::scan::foliage`]) when the shape classifier finds the cloud
-    /// leafy (at least [`LEAFY_SHARE`] of its points).
-    #[default]
-    Auto,
-    /// By colour when the cloud has colours, else by shape whatever the
-    /// share.
-    Shape,
-    /// Keep every point.
-    Off,
-}
-
-impl Default for ExtractParams {
-    fn default() -> Self {
-        Self {
-            spacing: DEFAULT_SPACING,
-            root: None,
-            up: Vector3::z(),
-            crop: None,
-            max_points: DEFAULT_MAX_POINTS,
-            voxel: 0.004,
-            max_gap: 0.06,
-            foliage: FoliageFilter::Auto,
-            sensor: Sensor::Unknown,
-            viewpoints: Vec::new(),
-        }
-    }
-}
-
-impl ExtractParams {
-    fn validate(&self) -> Result<Vector3<f64>, CloudError> {
-        let bad = |field, message: &str| {
-            Err(CloudError::BadParameter {
-                field,
-                message: message.to_owned(),
-            })
-        };
-        if !(self.spacing.is_finite() && (0.03..=1.0).contains(&self.spacing)) {
-            return bad("spacing", "spacing must be between 0.03 and 1 m");
-        }
-        if !(self.voxel.is_finite() && (0.001..=0.05).contains(&self.voxel)) {
-            return bad("voxel", "voxel must be between 0.001 and 0.05 m");
-        }
-        if !(self.max_gap.is_finite() && (0.0..=0.5).contains(&self.max_gap)) {
-            return bad("max_gap", "max_gap must be between 0 and 0.5 m");
-        }
-        if let Some(root) = self.root
-            && !root.iter().all(|c| c.is_finite())
-        {
-            return bad("root", "root must be finite");
-        }
-        if self.viewpoints.len() > MAX_VIEWPOINTS {
-            return bad(
-                "viewpoints",
-                &format!(
-                    "at most {MAX_VIEWPOINTS} viewpoints, not {}",
-                    self.viewpoints.len()
-                ),
-            );
-        }
-        if !self
-            .viewpoints
-            .iter()
-            .flat_map(|v| v.iter())
-            .all(|c| c.is_finite())
-        {
-            return bad("viewpoints", "viewpoints must be finite");
-        }
-        if let Some(crop) = self.crop
-            && (!(crop.min.iter().chain(crop.max.iter())).all(|c| c.is_finite())
-                || (0..3).any(|i| crop.min[i] > crop.max[i]))
-        {
-            return bad("crop", "crop must be finite with min <= max on every axis");
-        }
-        let norm = self.up.norm();
-        if !(norm.is_finite() && norm > 1e-9) {
-            return Err(CloudError::BadUp);
-        }
-        Ok(self.up / norm)
-    }
-}
 
 /// Points left out of the tree, by reason.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -200,10 +88,6 @@ pub struct Extraction {
     /// ([`crate::scan::viewpoint`]); said in a warning too.
     pub seen_from: Option<Point3<f64>>,
 }
-
-/// Most viewpoints a request may give: each is a depth image of the cloud
-/// (at most about 4 MB, one pass over the points).
-pub const MAX_VIEWPOINTS: usize = 16;
 
 /// Largest gap bridged once leaves were dropped by shape: the classifier
 /// takes some twig cubes with the leaves around them. Chosen on 42
@@ -551,6 +435,10 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
         bin,
         &up,
         params.sensor,
+        RawPoints {
+            points: &kept,
+            cubes: &voxels.members(),
+        },
     );
     warnings.extend(notes);
     if seen_from.is_some() && params.viewpoints.is_empty() {

@@ -1,10 +1,13 @@
 //! The extraction's tests: leaves by colour and by shape, parts bridged.
 
 use super::*;
+use nalgebra::Vector3;
+
 use crate::scan::foliage::is_foliage;
 use crate::scan::scanner::{Origin, ScanParams, scan};
 use crate::scan::score::score;
 use crate::scan::skeleton::point_segment;
+use crate::scan::viewpoint::Sensor;
 use crate::tree::{ScaParams, generate};
 
 /// A branch of the hand-made trees below.
@@ -467,4 +470,90 @@ fn excess_green_tells_leaves_from_bark_and_fruit() {
     assert!(!is_foliage([92, 68, 48]));
     assert!(!is_foliage([168, 42, 36]));
     assert!(!is_foliage([5, 20, 3]), "too dark to tell");
+}
+
+/// A stem of radius `r` (m) on the z axis, 0.5 m tall, scanned from one
+/// side (+y, 1.5 m out) by a laser whose footprint (a disc of radius `w`)
+/// returns the mean range of what it grazes, with 1 mm range noise.
+fn laser_scanned_stem(r: f64, w: f64) -> PointCloud {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let sub: Vec<f64> = (-4..=4)
+        .flat_map(|i| (-4..=4).map(move |j| (i as f64 / 4.0, j as f64 / 4.0)))
+        .filter(|(u, v)| u * u + v * v <= 1.0)
+        .map(|(u, _)| u * w)
+        .collect();
+    let mut points = Vec::new();
+    for row in 0..250 {
+        let z = 0.002 * row as f64;
+        let mut x = -(r + w);
+        while x <= r + w {
+            let depths: Vec<f64> = sub
+                .iter()
+                .filter(|u| (x + *u).abs() < r)
+                .map(|u| (r * r - (x + u) * (x + u)).sqrt())
+                .collect();
+            if !depths.is_empty() {
+                let y = depths.iter().sum::<f64>() / depths.len() as f64;
+                points.push(Point3::new(
+                    x,
+                    y + 0.001 * (rng.random::<f64>() - 0.5) * 3.46,
+                    z,
+                ));
+            }
+            x += 0.0015;
+        }
+    }
+    PointCloud::new(points)
+}
+
+/// Told the beam, a laser's one-sided stem comes back with its radius and
+/// on its axis; not told, the circles through its widened arcs are too
+/// large and stand behind the axis.
+#[test]
+fn a_laser_cloud_has_its_radii_from_the_silhouettes_less_the_beam() {
+    let (r, w) = (0.012, 0.003);
+    let cloud = laser_scanned_stem(r, w);
+    let median_radius = |e: &Extraction| {
+        let mut v = e.skeleton.radius[1..].to_vec();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let mean_behind = |e: &Extraction| {
+        let ys: Vec<f64> = e.skeleton.positions[1..].iter().map(|p| -p.y).collect();
+        ys.iter().sum::<f64>() / ys.len() as f64
+    };
+    let laser = ExtractParams {
+        sensor: Sensor::Laser { beam_radius: w },
+        ..ExtractParams::default()
+    };
+    let told = extract(&cloud, &laser).unwrap();
+    let plain = extract(&cloud, &ExtractParams::default()).unwrap();
+    assert!(told.seen_from.is_some() && plain.seen_from.is_some());
+    assert!(
+        told.warnings.iter().any(|w| w.contains("silhouettes")),
+        "{:?}",
+        told.warnings
+    );
+    assert!(
+        (median_radius(&told) - r).abs() < 0.0006,
+        "{}",
+        median_radius(&told)
+    );
+    assert!(
+        median_radius(&plain) > r + 0.001,
+        "{}",
+        median_radius(&plain)
+    );
+    assert!(mean_behind(&told).abs() < 0.001, "{}", mean_behind(&told));
+    assert!(mean_behind(&plain) > 0.001, "{}", mean_behind(&plain));
+    // A beam wider than a branch is refused by name.
+    let wide = ExtractParams {
+        sensor: Sensor::Laser { beam_radius: 0.2 },
+        ..ExtractParams::default()
+    };
+    match extract(&cloud, &wide) {
+        Err(CloudError::BadParameter { field, .. }) => assert_eq!(field, "beam_radius"),
+        other => panic!("{other:?}"),
+    }
 }

@@ -46,6 +46,14 @@ pub struct FromPointsRequest {
     /// What made the cloud (default `unknown`).
     #[serde(default)]
     pub sensor: Option<SensorJson>,
+    /// How far past a branch's edge a `laser`'s pulse still returns (m,
+    /// 0-0.05; default 0): about half the beam's footprint at the tree
+    /// (exit diameter plus range × divergence), less where the receiver
+    /// needs a larger share of the pulse's energy. Only with `sensor:
+    /// laser`.
+    #[serde(default)]
+    #[schema(minimum = 0.0, maximum = 0.05)]
+    pub beam_radius: Option<f64>,
     /// Where the sensor stood for each view (m; at most 16), when known:
     /// a camera's own cloud, in its frame, was seen from the origin. A gap
     /// in a branch's points that lies behind something the sensor saw is
@@ -62,22 +70,17 @@ pub struct FromPointsRequest {
 /// surface, by up to 0.4 of the radius where no tight circle fits. Not for
 /// a laser scanner whose beam is wider than the twigs: its returns lie
 /// behind the surface, and moving the axes back lost a tenth of recall
-/// and precision on such scans.
+/// and precision on such scans. `laser` (a terrestrial or mobile laser
+/// scanner, with its `beam_radius`): when the cloud was seen from one side,
+/// each branch's radius and axis come from its silhouette less the beam's
+/// spread, where a pulse that only grazed the branch still returned.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum SensorJson {
     #[default]
     Unknown,
     Camera,
-}
-
-impl From<SensorJson> for treemanip_core::scan::Sensor {
-    fn from(s: SensorJson) -> Self {
-        match s {
-            SensorJson::Unknown => Self::Unknown,
-            SensorJson::Camera => Self::Camera,
-        }
-    }
+    Laser,
 }
 
 /// How leaves are found: `auto`, by colour when `colors` are sent, else by
@@ -121,8 +124,15 @@ pub struct FromPointsQuery {
     pub crop: Option<String>,
     /// How leaves are found: `auto` (default), `shape` or `off`.
     pub foliage: Option<FoliageJson>,
-    /// What made the cloud: `unknown` (default) or `camera`.
+    /// What made the cloud: `unknown` (default), `camera` or `laser`.
     pub sensor: Option<SensorJson>,
+    /// How far past a branch's edge a `laser`'s pulse still returns (m,
+    /// 0-0.05; default 0): about half the beam's footprint at the tree
+    /// (exit diameter plus range × divergence), less where the receiver
+    /// needs a larger share of the pulse's energy. Only with `sensor:
+    /// laser`.
+    #[param(minimum = 0.0, maximum = 0.05)]
+    pub beam_radius: Option<f64>,
     /// Where the sensor stood for each view (m): `x,y,z` for each, all
     /// comma-separated (`viewpoints=0,0,0,1.5,0,0.8`).
     pub viewpoints: Option<String>,
