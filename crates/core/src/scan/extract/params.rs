@@ -51,7 +51,7 @@ pub struct ExtractParams {
 pub enum FoliageFilter {
     /// By colour when the cloud has colours; without, by shape
     /// ([`crate::scan::foliage`]) when the shape classifier finds the cloud
-    /// leafy (at least [`LEAFY_SHARE`] of its points).
+    /// leafy (at least [`LEAFY_SHARE`](crate::scan::foliage::LEAFY_SHARE) of its points).
     #[default]
     Auto,
     /// By colour when the cloud has colours, else by shape whatever the
