@@ -153,7 +153,7 @@ fn sigterm_under_load_finishes_admitted_requests_and_refuses_new_ones() {
     .unwrap();
     // The most work one request may ask for (256 actions at N = 30): about
     // 0.8 s on an idle 2-core AVX-512 machine, so both are still running
-    // when the signal comes 150 ms after they were sent.
+    // when the signal comes as soon as both were admitted.
     let heavy = json!({
         "tree": tree,
         "contact_nodes": (0..256).map(|k| 1 + k % 29).collect::<Vec<_>>(),
@@ -164,8 +164,26 @@ fn sigterm_under_load_finishes_admitted_requests_and_refuses_new_ones() {
         let admitted: Vec<_> = (0..2)
             .map(|_| scope.spawn(|| server.json("POST", "/v1/forward", &heavy)))
             .collect();
-        // Both are admitted before the signal.
-        std::thread::sleep(std::time::Duration::from_millis(150));
+        // Both are admitted (validated, their work queued or running)
+        // before the signal: counted by the server, not assumed after a
+        // fixed wait, which a loaded machine outruns (the requests were
+        // then still being read when the server exited).
+        let admitted_so_far = || {
+            let (_, _, metrics) = server.request("GET", "/metrics", "text/plain", b"");
+            metrics
+                .lines()
+                .filter(|l| l.starts_with("treemanip_actions_per_request_count"))
+                .filter_map(|l| l.rsplit(' ').next()?.parse::<f64>().ok())
+                .sum::<f64>()
+        };
+        let waiting = std::time::Instant::now();
+        while admitted_so_far() < 2.0 {
+            assert!(
+                waiting.elapsed() < std::time::Duration::from_secs(30),
+                "the two requests were never admitted"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
         server.terminate();
         std::thread::sleep(std::time::Duration::from_millis(100));
         // While draining: new requests are refused with 503, not dropped.
