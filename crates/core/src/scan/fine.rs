@@ -12,13 +12,13 @@ use crate::scan::skeleton::Skeleton;
 use crate::scan::viewpoint::{
     Sensor, Sighting, move_off_near_side, near_side_shift, one_sided_viewpoint,
 };
-use crate::scan::voxel::CubeMembers;
+use crate::scan::voxel::Voxels;
 
-/// The input points and the cubes' members among them.
+/// The input points and the cubes that average them.
 #[derive(Clone, Copy)]
 pub struct RawPoints<'a> {
     pub points: &'a [Point3<f64>],
-    pub cubes: &'a CubeMembers,
+    pub voxels: &'a Voxels,
 }
 
 /// The fine skeleton and what was learnt making it.
@@ -162,6 +162,7 @@ pub fn fine_skeleton(
         // points did not show a branch's cross-section clearly enough to
         // trust its silhouette (on sylva-rs's scans, seeds 1-3, taking
         // those too gained 0.006 recall and lost 0.013 precision).
+        let cubes = raw.voxels.members();
         for k in 1..n {
             let Some(circle_radius) = fitted[k] else {
                 continue;
@@ -169,7 +170,7 @@ pub fn fine_skeleton(
             let members: Vec<Point3<f64>> = pieces[k]
                 .members
                 .iter()
-                .flat_map(|&c| raw.cubes.of(c))
+                .flat_map(|&c| cubes.of(c))
                 .map(|&i| raw.points[i])
                 .collect();
             if let Some((centre, radius)) =

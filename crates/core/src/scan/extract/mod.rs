@@ -437,7 +437,7 @@ fn extract_once(cloud: &PointCloud, params: &ExtractParams) -> Result<Extraction
         params.sensor,
         RawPoints {
             points: &kept,
-            cubes: &voxels.members(),
+            voxels: &voxels,
         },
     );
     warnings.extend(notes);
