@@ -16,6 +16,8 @@
 //! Documentation beside the code: `docs/scans.md`.
 
 pub mod base;
+#[cfg(test)]
+pub(crate) mod beam_scan;
 pub mod bridge;
 pub mod circle_fit;
 pub mod cloud;

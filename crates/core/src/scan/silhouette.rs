@@ -76,36 +76,20 @@ pub fn from_silhouette(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scan::beam_scan::{BeamScan, scanned_stem};
     use crate::scan::circle_fit::fit_circle;
     use nalgebra::Vector2;
 
     /// One side of a vertical branch of radius `r` on the z axis, scanned
-    /// from +y by pulses 0.2 mm apart whose footprint (a disc of radius
-    /// `w`, 61 equal sub-beams) returns the mean range of what it hits.
+    /// from +y by pulses 0.2 mm apart whose footprint has radius `w`.
     fn beam_scan(r: f64, w: f64) -> Vec<Point3<f64>> {
-        let sub: Vec<(f64, f64)> = (-5..=5)
-            .flat_map(|i| (-5..=5).map(move |j| (i as f64 / 5.0, j as f64 / 5.0)))
-            .filter(|(u, v)| u * u + v * v <= 1.0)
-            .map(|(u, v)| (u * w, v * w))
-            .collect();
-        let mut out = Vec::new();
-        for row in 0..5 {
-            let z = 0.002 * row as f64;
-            let mut x = -(r + w + 0.001);
-            while x <= r + w + 0.001 {
-                let depths: Vec<f64> = sub
-                    .iter()
-                    .filter(|(u, _)| (x + u).abs() < r)
-                    .map(|(u, _)| (r * r - (x + u) * (x + u)).sqrt())
-                    .collect();
-                if !depths.is_empty() {
-                    let y = depths.iter().sum::<f64>() / depths.len() as f64;
-                    out.push(Point3::new(x, y, z));
-                }
-                x += 0.0002;
-            }
-        }
-        out
+        let scan = BeamScan {
+            beam: w,
+            step: 0.0002,
+            rows: 5,
+            noise: 0.0,
+        };
+        scanned_stem(r, &scan)
     }
 
     #[test]

@@ -3,6 +3,7 @@
 use super::*;
 use nalgebra::Vector3;
 
+use crate::scan::beam_scan::{BeamScan, scanned_stem};
 use crate::scan::foliage::is_foliage;
 use crate::scan::scanner::{Origin, ScanParams, scan};
 use crate::scan::score::score;
@@ -476,35 +477,13 @@ fn excess_green_tells_leaves_from_bark_and_fruit() {
 /// side (+y, 1.5 m out) by a laser whose footprint (a disc of radius `w`)
 /// returns the mean range of what it grazes, with 1 mm range noise.
 fn laser_scanned_stem(r: f64, w: f64) -> PointCloud {
-    use rand::{RngExt, SeedableRng};
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-    let sub: Vec<f64> = (-4..=4)
-        .flat_map(|i| (-4..=4).map(move |j| (i as f64 / 4.0, j as f64 / 4.0)))
-        .filter(|(u, v)| u * u + v * v <= 1.0)
-        .map(|(u, _)| u * w)
-        .collect();
-    let mut points = Vec::new();
-    for row in 0..250 {
-        let z = 0.002 * row as f64;
-        let mut x = -(r + w);
-        while x <= r + w {
-            let depths: Vec<f64> = sub
-                .iter()
-                .filter(|u| (x + *u).abs() < r)
-                .map(|u| (r * r - (x + u) * (x + u)).sqrt())
-                .collect();
-            if !depths.is_empty() {
-                let y = depths.iter().sum::<f64>() / depths.len() as f64;
-                points.push(Point3::new(
-                    x,
-                    y + 0.001 * (rng.random::<f64>() - 0.5) * 3.46,
-                    z,
-                ));
-            }
-            x += 0.0015;
-        }
-    }
-    PointCloud::new(points)
+    let scan = BeamScan {
+        beam: w,
+        step: 0.0015,
+        rows: 250,
+        noise: 0.001,
+    };
+    PointCloud::new(scanned_stem(r, &scan))
 }
 
 /// Told the beam, a laser's one-sided stem comes back with its radius and
